@@ -1,0 +1,24 @@
+# Compiler warnings, sanitizers and board CPU flags applied to every dentmark target.
+add_library(dentmark_options INTERFACE)
+target_compile_options(dentmark_options INTERFACE
+  -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align -Woverloaded-virtual
+  -Wformat=2 -Wimplicit-fallthrough)
+if(DENTMARK_WERROR)
+  target_compile_options(dentmark_options INTERFACE -Werror)
+endif()
+if(DENTMARK_SANITIZE)
+  target_compile_options(dentmark_options INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                                    -fno-sanitize-recover=undefined)
+  target_link_options(dentmark_options INTERFACE -fsanitize=address,undefined)
+endif()
+
+if(CMAKE_CROSSCOMPILING)
+  set(_board_cmake "${PROJECT_SOURCE_DIR}/boards/${DENTMARK_BOARD}/board.cmake")
+  if(NOT EXISTS "${_board_cmake}")
+    message(FATAL_ERROR "DENTMARK_BOARD=${DENTMARK_BOARD}: no ${_board_cmake}")
+  endif()
+  include("${_board_cmake}")
+  separate_arguments(_board_flags UNIX_COMMAND "${DENTMARK_BOARD_CPU_FLAGS}")
+  target_compile_options(dentmark_options INTERFACE ${_board_flags})
+  message(STATUS "dentmark: board ${DENTMARK_BOARD}, CPU flags '${DENTMARK_BOARD_CPU_FLAGS}'")
+endif()

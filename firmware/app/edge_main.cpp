@@ -1,0 +1,38 @@
+// dentmark-edge: the edge box daemon and its offline tools. Thin: parse, call, report.
+#include <exception>
+#include <iostream>
+
+#include "commands.h"
+#include "dentmark/common/log.h"
+#include "dentmark/common/version.h"
+
+namespace dentmark::edge {
+int& exit_code() {
+  static int code = 0;
+  return code;
+}
+}  // namespace dentmark::edge
+
+int main(int argc, char** argv) {
+  CLI::App app{"dentmark-edge: tracks the moving panel and marks its defects", "dentmark-edge"};
+  app.set_version_flag("--version", std::string("dentmark-edge ") + dentmark::kVersion);
+  app.require_subcommand(1);
+  dentmark::edge::register_run(app);
+  dentmark::edge::register_track(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;  // usage error
+  } catch (const std::exception& e) {
+    dentmark::log::error(e.what());
+    return 1;
+  }
+  return dentmark::edge::exit_code();
+}

@@ -1,0 +1,39 @@
+// dentmark: the host CLI. Thin: parse arguments, call a library, report.
+#include <exception>
+
+#include "commands.h"
+#include "dentmark/common/log.h"
+#include "dentmark/common/version.h"
+
+namespace dentmark::cli {
+int& exit_code() {
+  static int code = 0;
+  return code;
+}
+}  // namespace dentmark::cli
+
+int main(int argc, char** argv) {
+  CLI::App app{"dentmark: finds dents and bumps on car body panel scans and sends them to the marking station",
+               "dentmark"};
+  app.set_version_flag("--version", std::string("dentmark ") + dentmark::kVersion);
+  app.require_subcommand(1);
+  dentmark::cli::register_detect(app);
+  dentmark::cli::register_link(app);
+  dentmark::cli::register_sim(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;  // usage error
+  } catch (const std::exception& e) {
+    dentmark::log::error(e.what());
+    return 1;
+  }
+  return dentmark::cli::exit_code();
+}

@@ -1,0 +1,22 @@
+# ctest helper: runs a command and checks its exit code and output.
+#   cmake -DCMD="a|b|c" -DEXPECT_CODE=N [-DEXPECT_REGEX=re] [-DEXPECT_LINES=n] -P expect_command.cmake
+# EXPECT_LINES checks how many lines stdout+stderr have in total.
+string(REPLACE "|" ";" CMD "${CMD}")
+execute_process(COMMAND ${CMD} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 120)
+set(all "${out}${err}")
+if(NOT "${code}" STREQUAL "${EXPECT_CODE}")
+  message(FATAL_ERROR "exit code ${code}, expected ${EXPECT_CODE}; output:\n${all}")
+endif()
+if(DEFINED EXPECT_REGEX AND NOT all MATCHES "${EXPECT_REGEX}")
+  message(FATAL_ERROR "output does not match '${EXPECT_REGEX}':\n${all}")
+endif()
+if(DEFINED EXPECT_LINES)
+  string(STRIP "${all}" stripped)
+  string(REGEX MATCHALL "\n" newlines "${stripped}")
+  list(LENGTH newlines n)
+  math(EXPR n "${n} + 1")
+  if(NOT n EQUAL EXPECT_LINES)
+    message(FATAL_ERROR "${n} output lines, expected ${EXPECT_LINES}:\n${all}")
+  endif()
+endif()
+message(STATUS "ok: exit ${code}")
