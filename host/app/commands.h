@@ -8,11 +8,13 @@ namespace dentmark::cli {
 
 int& exit_code();
 
-// detect, synth scan, eval (scan processing)
-void register_detect(CLI::App& app);
+// detect, eval, synth scan (scan processing)
+void register_scan(CLI::App& app, CLI::App& synth);
 // send, inspect (host-to-edge link and protocol files)
 void register_link(CLI::App& app);
-// robot-sim, synth stereo (station simulation)
-void register_sim(CLI::App& app);
+// robot-sim (Modbus robot simulator)
+void register_robot_sim(CLI::App& app);
+// synth stereo (rendered stereo sequences of the moving panel)
+void register_stereo(CLI::App& app, CLI::App& synth);
 
 }  // namespace dentmark::cli

@@ -17,9 +17,12 @@ int main(int argc, char** argv) {
                "dentmark"};
   app.set_version_flag("--version", std::string("dentmark ") + dentmark::kVersion);
   app.require_subcommand(1);
-  dentmark::cli::register_detect(app);
+  CLI::App* synth = app.add_subcommand("synth", "Synthesise test data (scans, stereo sequences) with ground truth");
+  synth->require_subcommand(1);
+  dentmark::cli::register_scan(app, *synth);
   dentmark::cli::register_link(app);
-  dentmark::cli::register_sim(app);
+  dentmark::cli::register_robot_sim(app);
+  dentmark::cli::register_stereo(app, *synth);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

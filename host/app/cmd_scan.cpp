@@ -2,6 +2,6 @@
 
 namespace dentmark::cli {
 
-void register_sim(CLI::App& /*app*/) {}
+void register_scan(CLI::App& /*app*/, CLI::App& /*synth*/) {}
 
 }  // namespace dentmark::cli

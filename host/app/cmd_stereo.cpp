@@ -2,6 +2,6 @@
 
 namespace dentmark::cli {
 
-void register_detect(CLI::App& /*app*/) {}
+void register_stereo(CLI::App& /*app*/, CLI::App& /*synth*/) {}
 
 }  // namespace dentmark::cli
