@@ -89,7 +89,14 @@ struct MarkReport {
   bool operator==(const MarkReport&) const = default;
 };
 
-enum class EdgeState : std::uint8_t { kIdle = 0, kJobReceived = 1, kTracking = 2, kMarking = 3, kDone = 4, kSafe = 5 };
+enum class EdgeState : std::uint8_t {
+  kIdle = 0,
+  kJobReceived = 1,
+  kTracking = 2,
+  kMarking = 3,
+  kDone = 4,
+  kSafe = 5
+};
 
 // Edge -> host heartbeat.
 struct Status {
@@ -105,7 +112,7 @@ struct Status {
 };
 
 enum class ErrorCode : std::uint16_t {
-  kMalformedFrame = 1,  // the peer's frame failed to decode (detail says why)
+  kMalformedFrame = 1,   // the peer's frame failed to decode (detail says why)
   kUnauthenticated = 2,  // unsigned frame, bad HMAC or replay while a key is configured
   kUnsupported = 3,      // message type not accepted in this direction
   kBusy = 4,             // a job is running and cannot be replaced
@@ -115,7 +122,7 @@ enum class ErrorCode : std::uint16_t {
 // Either side: a request was refused.
 struct ErrorMessage {
   ErrorCode code = ErrorCode::kInternal;
-  std::uint64_t job_id = 0;             // job concerned, 0 when unknown
+  std::uint64_t job_id = 0;              // job concerned, 0 when unknown
   std::uint64_t offending_sequence = 0;  // sequence of the refused frame, 0 when unknown
   std::uint32_t byte_offset = 0;         // where decoding failed, 0 when not a decode error
   std::string text;                      // one line, printable ASCII, ≤ 255 bytes
