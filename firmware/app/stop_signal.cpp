@@ -32,7 +32,8 @@ bool StopSignal::wait_for(std::chrono::milliseconds timeout) {
   const int r = ::poll(&pfd, 1, static_cast<int>(timeout.count()));
   if (r > 0 && (pfd.revents & POLLIN)) {
     signalfd_siginfo info{};
-    if (::read(fd_, &info, sizeof info) == static_cast<ssize_t>(sizeof info)) signal_ = static_cast<int>(info.ssi_signo);
+    if (::read(fd_, &info, sizeof info) == static_cast<ssize_t>(sizeof info))
+      signal_ = static_cast<int>(info.ssi_signo);
   }
   return signal_ != 0;
 }

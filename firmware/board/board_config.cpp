@@ -60,7 +60,9 @@ class Section {
     }
   }
 
-  double number(const char* key, double lo, double hi) const { return number_node(required(key), join(key), lo, hi); }
+  double number(const char* key, double lo, double hi) const {
+    return number_node(required(key), join(key), lo, hi);
+  }
 
   double number_or(const char* key, double fallback, double lo, double hi) const {
     return has(key) ? number(key, lo, hi) : fallback;
@@ -75,8 +77,9 @@ class Section {
       fail_at(n, join(key), "expected an integer, got '" + scalar_text(n) + "'");
     }
     if (v < lo || v > hi)
-      fail_at(n, join(key), std::to_string(v) + " is out of range [" + std::to_string(lo) + ", " +
-                                std::to_string(hi) + "]");
+      fail_at(
+          n, join(key),
+          std::to_string(v) + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
     return v;
   }
 
@@ -205,7 +208,8 @@ BoardConfig parse_root(const YAML::Node& root, const std::string& source) {
   cam.allow_only({"backend", "left", "right", "width", "height", "max_skew"});
   cfg.camera.backend = parse_backend(cam);
   cfg.camera.left = cam.string("left");
-  cfg.camera.right = cfg.camera.backend == CameraBackend::kReplay ? cam.string_or("right", "") : cam.string("right");
+  cfg.camera.right =
+      cfg.camera.backend == CameraBackend::kReplay ? cam.string_or("right", "") : cam.string("right");
   cfg.camera.width = cam.integer_or("width", 1280, 16, 16384);
   cfg.camera.height = cam.integer_or("height", 1024, 16, 16384);
   cfg.camera.max_skew = cam.number_or("max_skew", 0.002, 0.0, 1.0);
@@ -254,14 +258,20 @@ BoardConfig load_board_config(const std::string& path) {
 
 const char* to_string(CameraBackend backend) {
   switch (backend) {
-    case CameraBackend::kV4l2: return "v4l2";
-    case CameraBackend::kLibcamera: return "libcamera";
-    case CameraBackend::kReplay: return "replay";
-    case CameraBackend::kSim: return "sim";
+    case CameraBackend::kV4l2:
+      return "v4l2";
+    case CameraBackend::kLibcamera:
+      return "libcamera";
+    case CameraBackend::kReplay:
+      return "replay";
+    case CameraBackend::kSim:
+      return "sim";
   }
   return "?";
 }
 
-const char* to_string(ModbusTransport transport) { return transport == ModbusTransport::kTcp ? "tcp" : "rtu"; }
+const char* to_string(ModbusTransport transport) {
+  return transport == ModbusTransport::kTcp ? "tcp" : "rtu";
+}
 
 }  // namespace dentmark::board

@@ -13,11 +13,13 @@ int& exit_code() {
 }  // namespace dentmark::cli
 
 int main(int argc, char** argv) {
-  CLI::App app{"dentmark: finds dents and bumps on car body panel scans and sends them to the marking station",
-               "dentmark"};
+  CLI::App app{
+      "dentmark: finds dents and bumps on car body panel scans and sends them to the marking station",
+      "dentmark"};
   app.set_version_flag("--version", std::string("dentmark ") + dentmark::kVersion);
   app.require_subcommand(1);
-  CLI::App* synth = app.add_subcommand("synth", "Synthesise test data (scans, stereo sequences) with ground truth");
+  CLI::App* synth =
+      app.add_subcommand("synth", "Synthesise test data (scans, stereo sequences) with ground truth");
   synth->require_subcommand(1);
   dentmark::cli::register_scan(app, *synth);
   dentmark::cli::register_link(app);

@@ -19,7 +19,9 @@ std::string read_text(const std::string& path) {
   return os.str();
 }
 
-std::string rpi5_text() { return read_text(kSource + "/boards/raspberrypi/rpi5/board.yaml"); }
+std::string rpi5_text() {
+  return read_text(kSource + "/boards/raspberrypi/rpi5/board.yaml");
+}
 
 // Replaces the first occurrence of 'from' in the rpi5 board text.
 std::string rpi5_with(const std::string& from, const std::string& to) {
@@ -86,8 +88,8 @@ TEST(BoardConfig, ErrorsNameKeyAndLine) {
       {"transport: tcp", "transport: can", "modbus.transport", "not tcp or rtu"},
       {"{ line: \"GPIO17\", active_low: false }", "{ active_low: false }", "gpio.sprayer_valve.line",
        "missing required key"},
-      {"{ line: \"GPIO27\", active_low: true }", "{ line: \"GPIO27\", active_low: maybe }", "gpio.estop.active_low",
-       "expected true or false"},
+      {"{ line: \"GPIO27\", active_low: true }", "{ line: \"GPIO27\", active_low: maybe }",
+       "gpio.estop.active_low", "expected true or false"},
       {"max_skew: 0.002", "max_skw: 0.002", "camera.max_skw", "unknown key"},
       {"workspace_min: [-0.60, -0.80, -0.10]", "workspace_min: [-0.60, -0.80]", "limits.workspace_min",
        "list of 3"},

@@ -12,7 +12,8 @@ TEST(PlaneFit, KnownAnswerTiltedPlane) {
   // z = 0.5 x − 0.25 y + 1 sampled on a grid: normal ∝ (−0.5, 0.25, 1).
   std::vector<Eigen::Vector3d> pts;
   for (int i = -3; i <= 3; ++i)
-    for (int j = -3; j <= 3; ++j) pts.emplace_back(i * 0.01, j * 0.01, 0.5 * i * 0.01 - 0.25 * j * 0.01 + 1.0);
+    for (int j = -3; j <= 3; ++j)
+      pts.emplace_back(i * 0.01, j * 0.01, 0.5 * i * 0.01 - 0.25 * j * 0.01 + 1.0);
   const Plane plane = fit_plane(pts, {}, Eigen::Vector3d::UnitZ());
   const Eigen::Vector3d expected = Eigen::Vector3d(-0.5, 0.25, 1.0).normalized();
   EXPECT_NEAR((plane.normal - expected).norm(), 0.0, 1e-12);

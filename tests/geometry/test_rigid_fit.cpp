@@ -65,7 +65,8 @@ TEST(RigidFit, NoiseErrorShrinksLikeOneOverSqrtN) {
       const Transform truth = random_pose(rng);
       const auto from = random_points(rng, n, 0.5);
       std::vector<Eigen::Vector3d> to;
-      for (const auto& p : from) to.push_back(truth * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+      for (const auto& p : from)
+        to.push_back(truth * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
       const RigidFit fit = fit_rigid(from, to);
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       for (const auto& p : from) c += p / n;

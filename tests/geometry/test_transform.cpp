@@ -11,7 +11,8 @@ namespace {
 
 TEST(Transform, ChainsByFrameNames) {
   // T_a_c = T_a_b * T_b_c: a point in c reaches a through b.
-  const Transform T_a_b = make_transform_rotvec(Eigen::Vector3d(0, 0, std::numbers::pi / 2), Eigen::Vector3d(1, 0, 0));
+  const Transform T_a_b =
+      make_transform_rotvec(Eigen::Vector3d(0, 0, std::numbers::pi / 2), Eigen::Vector3d(1, 0, 0));
   const Transform T_b_c = make_transform_rotvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 2, 0));
   const Eigen::Vector3d p_c(1, 0, 0);
   const Eigen::Vector3d p_a = (T_a_b * T_b_c) * p_c;

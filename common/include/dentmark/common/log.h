@@ -12,9 +12,17 @@ void set_level(Level level);
 Level level();
 void write(Level level, const std::string& message);
 
-inline void debug(const std::string& m) { write(Level::kDebug, m); }
-inline void info(const std::string& m) { write(Level::kInfo, m); }
-inline void warn(const std::string& m) { write(Level::kWarn, m); }
-inline void error(const std::string& m) { write(Level::kError, m); }
+inline void debug(const std::string& m) {
+  write(Level::kDebug, m);
+}
+inline void info(const std::string& m) {
+  write(Level::kInfo, m);
+}
+inline void warn(const std::string& m) {
+  write(Level::kWarn, m);
+}
+inline void error(const std::string& m) {
+  write(Level::kError, m);
+}
 
 }  // namespace dentmark::log

@@ -52,8 +52,8 @@ enum class ModbusTransport { kTcp, kRtu };
 
 struct ModbusConfig {
   ModbusTransport transport = ModbusTransport::kTcp;
-  std::string host;  // TCP
-  int port = 502;    // TCP
+  std::string host;    // TCP
+  int port = 502;      // TCP
   std::string device;  // RTU serial device
   int baud = 115200;
   char parity = 'N';  // 'N', 'E' or 'O'
