@@ -1,0 +1,78 @@
+#pragma once
+// Runs one marking job (design.md §4, daemon): for the panel of a DefectList it plans
+// the marks on the moving panel, drives the robot approach → point → spray → retract
+// for each, and reports what it marked, where and when.
+//
+// Safety: the e-stop is read before every step and while waiting; on e-stop, robot
+// fault, lost tracking or any exception the valve is closed, the robot is aborted and
+// the remaining defects are reported with the reason. Every wait has a timeout.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+
+#include "dentmark/common/clock/clock.h"
+#include "dentmark/common/protocol/messages.h"
+#include "dentmark/firmware/hal/robot/robot.h"
+#include "dentmark/firmware/plan/marking_plan.h"
+#include "dentmark/firmware/station/motion_source.h"
+
+namespace dentmark::station {
+
+// The station's safety I/O apart from the robot (GPIO on the edge box).
+class SafetyIo {
+ public:
+  virtual ~SafetyIo() = default;
+  virtual bool estop_active() = 0;
+  // Opens the sprayer valve for 'duration' seconds of clock time, then closes it.
+  virtual void spray(double duration) = 0;
+  // Closes the valve (idempotent, never throws).
+  virtual void valve_off() noexcept = 0;
+};
+
+struct JobConfig {
+  plan::PlannerConfig planner;
+  double approach_distance = 0.04;     // m back along the tool axis before the final approach
+  double retract_distance = 0.06;      // m back along the tool axis after spraying
+  double correction_tolerance = 4e-4;  // m: re-aim before spraying when the target moved more
+  int max_corrections = 3;
+  double min_quality = 0.2;          // tracker quality below this counts as lost
+  double max_estimate_age = 0.5;     // s: an older estimate counts as lost
+  double tracking_timeout = 5.0;     // s to wait for tracking before giving up on a defect
+  double move_timeout_margin = 2.0;  // s allowed beyond the planned move time
+  double poll_period = 0.01;         // s between status polls
+  double epoch_offset = 0.0;         // s: clock time + epoch_offset = Unix time (for reports)
+};
+
+class JobRunner {
+ public:
+  JobRunner(hal::Robot& robot, SafetyIo& safety, MotionSource& motion, clock::Clock& clock, JobConfig config);
+
+  // Marks the list's dent, bump and hole defects. t_scan is the scan's time on the
+  // clock; the motion source must cover it. Never throws: failures are in the report.
+  protocol::MarkReport run(const protocol::DefectList& list, double t_scan);
+
+  protocol::EdgeState state() const { return state_.load(); }
+  // Asks a running job to stop after the current step (thread-safe).
+  void cancel() { cancelled_ = true; }
+
+ private:
+  struct Target;
+  protocol::Mark mark_one(const Target& target, const plan::MotionPredictor& since_scan);
+  hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time);
+  Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
+                                double t) const;
+  bool tracking_ok();
+  void check_interlocks();
+
+  hal::Robot& robot_;
+  SafetyIo& safety_;
+  MotionSource& motion_;
+  clock::Clock& clock_;
+  JobConfig config_;
+  std::atomic<protocol::EdgeState> state_{protocol::EdgeState::kIdle};
+  std::atomic<bool> cancelled_{false};
+  Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace dentmark::station

@@ -1,0 +1,265 @@
+#include "dentmark/firmware/station/job_runner.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "dentmark/common/log.h"
+#include "dentmark/firmware/plan/marking_pose.h"
+
+namespace dentmark::station {
+
+using protocol::MarkOutcome;
+using protocol::MarkReason;
+
+namespace {
+
+// Stops the whole job: every defect not yet marked is reported with 'reason'.
+struct JobAbort {
+  MarkReason reason;
+  std::string why;
+};
+
+// Gives up on the current defect only.
+struct SkipDefect {
+  MarkReason reason;
+  std::string why;
+};
+
+bool markable(protocol::DefectClass c) {
+  return c == protocol::DefectClass::kDent || c == protocol::DefectClass::kBump ||
+         c == protocol::DefectClass::kHole;
+}
+
+Transform backed_off(const Transform& T_base_tool, double distance) {
+  // Back along the tool's own z axis (away from the surface).
+  Transform t = T_base_tool;
+  t.translation() -= distance * T_base_tool.linear().col(2);
+  return t;
+}
+
+protocol::Mark unmarked(std::uint32_t id, MarkOutcome outcome, MarkReason reason) {
+  protocol::Mark m;
+  m.defect_id = id;
+  m.outcome = outcome;
+  m.reason = reason;
+  return m;
+}
+
+}  // namespace
+
+struct JobRunner::Target {
+  std::uint32_t id = 0;
+  Transform T_sls_v = Transform::Identity();
+};
+
+JobRunner::JobRunner(hal::Robot& robot, SafetyIo& safety, MotionSource& motion, clock::Clock& clock,
+                     JobConfig config)
+    : robot_(robot), safety_(safety), motion_(motion), clock_(clock), config_(std::move(config)) {}
+
+Transform JobRunner::predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
+                                         double t) const {
+  return plan::tool_pose_in_base(config_.planner.chain, since_scan(t), target.T_sls_v);
+}
+
+bool JobRunner::tracking_ok() {
+  const auto e = motion_.latest();
+  return e && e->ok && e->quality >= config_.min_quality && clock_.now() - e->t <= config_.max_estimate_age;
+}
+
+void JobRunner::check_interlocks() {
+  if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop active"};
+  if (cancelled_) throw JobAbort{MarkReason::kAborted, "job cancelled"};
+}
+
+hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double planned_time) {
+  if (!config_.planner.limits.contains(T_base_tool.translation()))
+    throw SkipDefect{MarkReason::kOutOfReach, "pose outside the workspace"};
+  const std::uint16_t seq = robot_.move_to(T_base_tool, config_.planner.limits.max_speed);
+  const double deadline = clock_.now() + planned_time + config_.move_timeout_margin;
+  for (;;) {
+    // The e-stop is honoured during the move, not only between moves.
+    check_interlocks();
+    robot_.heartbeat();
+    const hal::RobotStatus s = robot_.status();
+    if (s.sequence == seq) {
+      if (s.state == robot_link::State::kIdle) {
+        tip_ = s.T_base_tool.translation();
+        return s;
+      }
+      if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
+        throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) +
+                                                    ": " + robot_link::fault_names(s.faults)};
+    }
+    if (clock_.now() >= deadline) throw JobAbort{MarkReason::kTimeout, "robot move did not finish in time"};
+    clock_.sleep_for(config_.poll_period);
+  }
+}
+
+protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredictor& since_scan) {
+  const plan::RobotLimits& limits = config_.planner.limits;
+  // Where the tool must be to meet the defect: t = now + move_time(tip → pose(t)),
+  // solved by fixed-point iteration (the line is slow against the tool).
+  const auto aim = [&](double back_off) {
+    double t = clock_.now();
+    Transform pose = backed_off(predicted_tool_pose(target, since_scan, t), back_off);
+    for (int i = 0; i < 8; ++i) {
+      t = clock_.now() + plan::move_time((pose.translation() - tip_).norm(), limits);
+      pose = backed_off(predicted_tool_pose(target, since_scan, t), back_off);
+    }
+    return std::pair{pose, t - clock_.now()};
+  };
+
+  // Approach: stand off along the tool axis, then go in straight along it.
+  const auto [approach, t_approach] = aim(config_.approach_distance);
+  move_and_wait(approach, t_approach);
+  hal::RobotStatus at{};
+  double residual = 0.0;
+  for (int k = 0; k <= config_.max_corrections; ++k) {
+    check_interlocks();
+    if (!tracking_ok()) throw SkipDefect{MarkReason::kTrackingLost, "tracking lost before spraying"};
+    const auto [pose, t_move] = aim(0.0);
+    at = move_and_wait(pose, t_move);
+    // The panel kept moving while the tool travelled: how far is the target now?
+    residual = (predicted_tool_pose(target, since_scan, clock_.now()).translation() - tip_).norm();
+    if (residual <= config_.correction_tolerance) break;
+  }
+
+  check_interlocks();
+  protocol::Mark mark;
+  mark.defect_id = target.id;
+  mark.outcome = MarkOutcome::kMarked;
+  mark.reason = MarkReason::kNone;
+  mark.time = clock_.now() + config_.epoch_offset;
+  mark.tool_position = at.T_base_tool.translation();
+  const auto est = motion_.latest();
+  const double track_rms = est ? est->rms : 0.0;
+  mark.estimated_error = std::sqrt(residual * residual + track_rms * track_rms);
+
+  const double duration = config_.planner.spray_duration;
+  const std::uint16_t seq = robot_.spray(duration);
+  safety_.spray(duration);
+  const double deadline = clock_.now() + duration + config_.move_timeout_margin;
+  for (;;) {
+    check_interlocks();
+    robot_.heartbeat();
+    const hal::RobotStatus s = robot_.status();
+    if (s.sequence == seq && s.state == robot_link::State::kIdle) break;
+    if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
+      throw JobAbort{MarkReason::kRobotFault, "robot stopped while spraying"};
+    if (clock_.now() >= deadline) throw JobAbort{MarkReason::kTimeout, "spray did not finish in time"};
+    clock_.sleep_for(config_.poll_period);
+  }
+  const Transform retract = backed_off(at.T_base_tool, config_.retract_distance);
+  if (limits.contains(retract.translation()))
+    move_and_wait(retract, plan::move_time(config_.retract_distance, limits));
+  return mark;
+}
+
+protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_scan) {
+  cancelled_ = false;
+  state_ = protocol::EdgeState::kJobReceived;
+  protocol::MarkReport report;
+  report.job_id = list.job_id;
+
+  std::vector<Target> remaining;
+  for (const protocol::Defect& d : list.defects) {
+    if (!markable(d.defect_class) || list.frame != "sls") {
+      report.marks.push_back(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+      continue;
+    }
+    try {
+      remaining.push_back(Target{d.id, plan::defect_frame(d.position, d.normal)});
+    } catch (const GeometryError&) {
+      report.marks.push_back(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+    }
+  }
+  // M since the scan: the motion source's M(t) composed with the inverse of M(t_scan).
+  const plan::MotionPredictor since_scan = [this, t_scan](double t) {
+    return motion_.predict(t) * motion_.predict(t_scan).inverse();
+  };
+  const auto fail_remaining = [&](MarkOutcome outcome, MarkReason reason) {
+    for (const Target& t : remaining) report.marks.push_back(unmarked(t.id, outcome, reason));
+    remaining.clear();
+  };
+
+  state_ = protocol::EdgeState::kTracking;
+  const double track_deadline = clock_.now() + config_.tracking_timeout;
+  while (!tracking_ok() && clock_.now() < track_deadline && !cancelled_)
+    clock_.sleep_for(config_.poll_period);
+  if (!tracking_ok()) {
+    log::warn("job " + std::to_string(list.job_id) + ": no tracking; nothing marked");
+    fail_remaining(MarkOutcome::kSkipped, MarkReason::kTrackingLost);
+    safety_.valve_off();
+    state_ = protocol::EdgeState::kDone;
+    return report;
+  }
+
+  state_ = protocol::EdgeState::kMarking;
+  bool safe = false;
+  try {
+    robot_.connect();
+    robot_.heartbeat();
+    tip_ = robot_.status().T_base_tool.translation();
+    while (!remaining.empty()) {
+      check_interlocks();
+      if (!tracking_ok()) {
+        const double deadline = clock_.now() + config_.tracking_timeout;
+        while (!tracking_ok() && clock_.now() < deadline) {
+          check_interlocks();
+          robot_.heartbeat();
+          clock_.sleep_for(config_.poll_period);
+        }
+        if (!tracking_ok()) {
+          fail_remaining(MarkOutcome::kSkipped, MarkReason::kTrackingLost);
+          break;
+        }
+      }
+      std::vector<plan::DefectToMark> todo;
+      for (const Target& t : remaining) todo.push_back({t.id, t.T_sls_v});
+      const auto plan = plan::plan_marks(todo, tip_, clock_.now(), since_scan, config_.planner);
+      if (plan.empty() || !plan.front().reachable) {
+        fail_remaining(MarkOutcome::kSkipped, MarkReason::kOutOfReach);
+        break;
+      }
+      const auto it = std::find_if(remaining.begin(), remaining.end(),
+                                   [&](const Target& t) { return t.id == plan.front().id; });
+      const Target target = *it;
+      try {
+        report.marks.push_back(mark_one(target, since_scan));
+      } catch (const SkipDefect& s) {
+        log::warn("defect " + std::to_string(target.id) + " skipped: " + s.why);
+        report.marks.push_back(unmarked(target.id, MarkOutcome::kSkipped, s.reason));
+      }
+      remaining.erase(std::find_if(remaining.begin(), remaining.end(),
+                                   [&](const Target& t) { return t.id == target.id; }));
+    }
+  } catch (const JobAbort& a) {
+    log::error("job " + std::to_string(list.job_id) + " stopped: " + a.why);
+    safe = true;
+    fail_remaining(MarkOutcome::kFailed, a.reason);
+  } catch (const hal::RobotError& e) {
+    log::error("job " + std::to_string(list.job_id) + " robot error: " + e.what());
+    safe = true;
+    fail_remaining(MarkOutcome::kFailed, e.kind() == hal::RobotError::Kind::kWaitTimeout
+                                             ? MarkReason::kTimeout
+                                             : MarkReason::kRobotFault);
+  } catch (const std::exception& e) {
+    log::error("job " + std::to_string(list.job_id) + " failed: " + e.what());
+    safe = true;
+    fail_remaining(MarkOutcome::kFailed, MarkReason::kAborted);
+  }
+  safety_.valve_off();
+  if (safe) {
+    try {
+      robot_.abort();
+    } catch (const std::exception& e) {
+      log::error(std::string("robot abort failed (robot watchdog stops it): ") + e.what());
+    }
+  }
+  state_ = safe ? protocol::EdgeState::kSafe : protocol::EdgeState::kDone;
+  return report;
+}
+
+}  // namespace dentmark::station
