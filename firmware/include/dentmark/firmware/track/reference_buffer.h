@@ -1,0 +1,37 @@
+#pragma once
+// The reference buffer of paper §IV-A: the macro-features' 3D layout in camL at the
+// first frame plus their image templates. Motion is always fitted against it, never
+// chained frame to frame, so it cannot drift; its pairwise 3D distances are the
+// geometric check that catches a feature that slid onto something else.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <span>
+#include <vector>
+
+namespace dentmark::track {
+
+struct ReferenceFeature {
+  Eigen::Vector3d p_camL = Eigen::Vector3d::Zero();  // at the first frame, m
+  cv::Mat template_left, template_right;             // CV_32F patches at the first frame
+};
+
+class ReferenceBuffer {
+ public:
+  void add(const ReferenceFeature& feature) { features_.push_back(feature); }
+  std::size_t size() const { return features_.size(); }
+  const ReferenceFeature& operator[](std::size_t i) const { return features_[i]; }
+  std::vector<Eigen::Vector3d> points() const;
+  Eigen::Vector3d centroid() const;
+
+  // Geometric consistency: for each feature i with valid[i], the median over the other
+  // valid features j of | |p_i − p_j| − |X_i − X_j| |. A rigidly moved layout gives
+  // only noise; a mistracked feature stands out. Invalid entries get +inf.
+  std::vector<double> distance_disagreement(std::span<const Eigen::Vector3d> current,
+                                            const std::vector<bool>& valid) const;
+
+ private:
+  std::vector<ReferenceFeature> features_;
+};
+
+}  // namespace dentmark::track

@@ -1,0 +1,31 @@
+#pragma once
+// Step A, camR → camL (paper §IV-A): the right-image corner is found in the left image
+// by normalised cross-correlation along its epipolar curve (distortion-aware, over a
+// depth range), then pyramidal LK camR → camL and sub-pixel refinement in camL.
+
+#include <opencv2/core.hpp>
+#include <optional>
+
+#include "dentmark/firmware/track/pyramid_lk.h"
+#include "dentmark/firmware/track/stereo_calibration.h"
+
+namespace dentmark::track {
+
+struct StereoMatchOptions {
+  double min_depth = 0.3;   // m
+  double max_depth = 30.0;  // m
+  int template_half = 10;   // px
+  double min_ncc = 0.6;
+  int subpix_half_window = 5;
+};
+
+struct StereoMatch {
+  cv::Point2f left;
+  double ncc = 0.0;
+};
+
+std::optional<StereoMatch> match_right_to_left(const StereoCalibration& calib, const ImagePyramid& right,
+                                               const ImagePyramid& left, const cv::Point2f& p_right,
+                                               const StereoMatchOptions& options, const LkOptions& lk);
+
+}  // namespace dentmark::track

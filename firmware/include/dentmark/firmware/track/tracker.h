@@ -1,0 +1,97 @@
+#pragma once
+// The edge's pose-and-motion tracker of the moving panel (paper §IV-A, design.md §4).
+//
+// start(): seeds → Shi-Tomasi + cornerSubPix in camR → camR→camL match → sub-pixel in
+// camL → triangulation → reference buffer.
+// track(): per frame, one pyramid per image; LK from the previous frame in both cameras
+// from the constant-velocity prediction; forward–backward check; sub-pixel refinement;
+// appearance check against the reference templates; triangulation; pairwise-distance
+// check against the reference buffer; robust weighted rigid fit of the reference onto
+// the current features; re-acquisition of lost features near their predicted
+// positions; then the motion filter. M(k) maps camL at the first frame to camL at k.
+
+#include <opencv2/core.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "dentmark/firmware/track/corner_refine.h"
+#include "dentmark/firmware/track/motion_filter.h"
+#include "dentmark/firmware/track/pyramid_lk.h"
+#include "dentmark/firmware/track/reference_buffer.h"
+#include "dentmark/firmware/track/robust_motion.h"
+#include "dentmark/firmware/track/stereo_calibration.h"
+#include "dentmark/firmware/track/stereo_match.h"
+
+namespace dentmark::track {
+
+struct TrackerOptions {
+  CornerOptions corner;
+  LkOptions lk;
+  StereoMatchOptions stereo;
+  RobustMotionOptions robust;
+  MotionFilterOptions filter;
+  int template_half = 7;          // appearance / re-acquisition template, px
+  double max_fb_error = 0.5;      // forward–backward LK disagreement, px
+  double max_subpix_shift = 2.0;  // cornerSubPix may move an LK point this far, px
+  double min_appearance_ncc = 0.6;
+  double reacquire_ncc = 0.8;
+  int reacquire_radius = 6;         // px around the prediction
+  double max_reprojection = 1.0;    // px, triangulation
+  double max_disagreement = 0.004;  // m, pairwise distances vs the reference
+  int min_features = 3;
+};
+
+struct FrameResult {
+  long index = 0;
+  double t = 0.0;
+  bool ok = false;
+  int features = 0;                              // features used in the fit
+  Transform motion = Transform::Identity();      // filtered M(k) (the prediction if !ok)
+  Transform raw_motion = Transform::Identity();  // this frame's fit alone
+  double rms = 0.0;                              // fit residual RMS, m
+  double quality = 0.0;                          // 0..1: inlier share × residual term
+  std::string note;                              // why !ok
+};
+
+class Tracker {
+ public:
+  Tracker(StereoCalibration calibration, TrackerOptions options = {});
+
+  // Builds the reference buffer from the first stereo frame and rough camR seeds.
+  // Throws TrackError when fewer than min_features seeds give usable stereo features.
+  FrameResult start(const cv::Mat& left, const cv::Mat& right, double t,
+                    std::span<const cv::Point2f> seeds_right, long index = 0);
+  // Tracks one more stereo frame (t strictly increasing).
+  FrameResult track(const cv::Mat& left, const cv::Mat& right, double t, long index);
+  // A frame that could not be read: predict through it.
+  FrameResult skip(double t, long index, const std::string& why);
+
+  const ReferenceBuffer& reference() const { return reference_; }
+  // Which seeds became reference features (index into the seeds of start()).
+  const std::vector<int>& seed_of_feature() const { return seed_of_feature_; }
+  // Current pixel positions of the features (left, right) and whether each is tracked.
+  const std::vector<cv::Point2f>& left_points() const { return left_; }
+  const std::vector<cv::Point2f>& right_points() const { return right_; }
+  const std::vector<bool>& tracked() const { return active_; }
+
+ private:
+  FrameResult fit_and_filter(long index, double t, std::vector<Eigen::Vector3d>& current,
+                             std::vector<bool>& valid);
+  bool reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left, const ImagePyramid& right,
+                 Eigen::Vector3d& p_camL);
+
+  StereoCalibration calib_;
+  TrackerOptions opt_;
+  ReferenceBuffer reference_;
+  std::vector<int> seed_of_feature_;
+  MotionFilter filter_;
+  ImagePyramid prev_left_, prev_right_;
+  std::vector<cv::Point2f> left_, right_;
+  std::vector<bool> active_;
+  double t_prev_ = 0.0;
+  double rms_ema_ = 0.0;
+  bool started_ = false;
+};
+
+}  // namespace dentmark::track

@@ -1,0 +1,151 @@
+#include "dentmark/firmware/track/replay.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "dentmark/common/log.h"
+#include "dentmark/firmware/track/sequence.h"
+#include "dentmark/firmware/track/track_error.h"
+
+namespace dentmark::track {
+namespace fs = std::filesystem;
+
+ReplayResult replay_sequence(const fs::path& dir, const TrackerOptions& options) {
+  const Sequence seq = load_sequence(dir);
+  const std::vector<cv::Point2f> seeds = load_seeds(dir / "seeds.yaml", seq.calibration.size);
+  Tracker tracker(seq.calibration, options);
+  ReplayResult out;
+  const FrameEntry& f0 = seq.frames.front();
+  const cv::Mat l0 = load_grey(f0.left, seq.calibration.size), r0 = load_grey(f0.right, seq.calibration.size);
+  try {
+    out.frames.push_back(tracker.start(l0, r0, f0.t, seeds, f0.index));
+  } catch (const TrackError& e) {
+    throw TrackError((dir / "seeds.yaml").string() + ": " + e.what());
+  }
+  out.reference_features = static_cast<int>(tracker.reference().size());
+  for (std::size_t k = 1; k < seq.frames.size(); ++k) {
+    const FrameEntry& f = seq.frames[k];
+    cv::Mat l, r;
+    try {
+      l = load_grey(f.left, seq.calibration.size);
+      r = load_grey(f.right, seq.calibration.size);
+    } catch (const TrackError& e) {
+      log::warn(std::string("frame ") + std::to_string(f.index) + ": " + e.what());
+      out.frames.push_back(tracker.skip(f.t, f.index, e.what()));
+      continue;
+    }
+    out.frames.push_back(tracker.track(l, r, f.t, f.index));
+  }
+  return out;
+}
+
+void write_replay_json(const ReplayResult& result, const fs::path& path) {
+  nlohmann::json frames = nlohmann::json::array();
+  for (const FrameResult& f : result.frames) {
+    nlohmann::json m = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int c = 0; c < 4; ++c) row.push_back(f.motion.matrix()(r, c));
+      m.push_back(row);
+    }
+    nlohmann::json j = {{"index", f.index},     {"t", f.t},     {"ok", f.ok}, {"features", f.features},
+                        {"quality", f.quality}, {"rms", f.rms}, {"motion", m}};
+    if (!f.note.empty()) j["note"] = f.note;
+    frames.push_back(j);
+  }
+  const nlohmann::json doc = {{"frames", frames}};
+  const fs::path tmp = path.string() + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream o(tmp);
+    if (!o) throw TrackError(path.string() + ": cannot write");
+    o << doc.dump(1) << "\n";
+    if (!o) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw TrackError(path.string() + ": write failed");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw TrackError(path.string() + ": cannot rename into place");
+  }
+}
+
+namespace {
+
+std::vector<std::vector<double>> read_numeric_csv(const fs::path& path, std::size_t columns) {
+  std::ifstream in(path);
+  if (!in) throw TrackError(path.string() + ": cannot open");
+  std::vector<std::vector<double>> rows;
+  std::string line;
+  long no = 0;
+  while (std::getline(in, line)) {
+    ++no;
+    if (no == 1 || line.find_first_not_of(" \r\t") == std::string::npos) continue;  // header
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) {
+      char* end = nullptr;
+      const double x = std::strtod(cell.c_str(), &end);
+      if (end == cell.c_str() || !std::isfinite(x))
+        throw TrackError(path.string() + ":" + std::to_string(no) + ": '" + cell + "' is not a number");
+      v.push_back(x);
+    }
+    if (v.size() != columns)
+      throw TrackError(path.string() + ":" + std::to_string(no) + ": expected " + std::to_string(columns) +
+                       " fields");
+    rows.push_back(v);
+  }
+  return rows;
+}
+
+}  // namespace
+
+MotionErrors compare_with_truth(const ReplayResult& result, const fs::path& truth_csv,
+                                const fs::path& points_csv, long first_frame, long last_frame) {
+  std::map<long, Transform> truth;
+  for (const auto& r : read_numeric_csv(truth_csv, 14)) {
+    Transform m = Transform::Identity();
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 4; ++j) m.matrix()(i, j) = r[static_cast<std::size_t>(2 + 4 * i + j)];
+    truth[static_cast<long>(r[0])] = m;
+  }
+  std::vector<Eigen::Vector3d> pts;
+  for (const auto& r : read_numeric_csv(points_csv, 3)) pts.emplace_back(r[0], r[1], r[2]);
+  if (pts.empty()) throw TrackError(points_csv.string() + ": no points");
+  MotionErrors e;
+  double sum = 0.0, sq = 0.0;
+  long count = 0;
+  for (const FrameResult& f : result.frames) {
+    if ((first_frame >= 0 && f.index < first_frame) || (last_frame >= 0 && f.index > last_frame)) continue;
+    const auto it = truth.find(f.index);
+    if (it == truth.end()) continue;
+    if (!f.ok) {
+      ++e.failed;
+      continue;
+    }
+    ++e.frames;
+    for (const auto& p : pts) {
+      const double d = (f.motion * p - it->second * p).norm();
+      sum += d;
+      sq += d * d;
+      e.worst = std::max(e.worst, d);
+      ++count;
+    }
+  }
+  if (count > 0) {
+    e.mean = sum / static_cast<double>(count);
+    e.rms = std::sqrt(sq / static_cast<double>(count));
+  }
+  return e;
+}
+
+}  // namespace dentmark::track

@@ -1,0 +1,69 @@
+#include "dentmark/firmware/track/stereo_match.h"
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "dentmark/firmware/track/corner_refine.h"
+
+namespace dentmark::track {
+
+std::optional<StereoMatch> match_right_to_left(const StereoCalibration& calib, const ImagePyramid& right,
+                                               const ImagePyramid& left, const cv::Point2f& p_right,
+                                               const StereoMatchOptions& o, const LkOptions& lk) {
+  const cv::Mat& imr = right.image();
+  const cv::Mat& iml = left.image();
+  const int h = o.template_half;
+  const cv::Mat templ = patch_at(imr, p_right, h);
+  // The camR ray of the corner, sampled in inverse depth and seen by camL: the epipolar
+  // curve (curved when the lenses distort).
+  const cv::Point2d n = calib.normalize(Cam::kRight, {p_right})[0];
+  const Eigen::Vector3d ray(n.x, n.y, 1.0);
+  const Transform T_camL_camR = calib.T_camR_camL.inverse();
+  auto along = [&](double depth) { return Eigen::Vector3d(T_camL_camR * (depth * ray)); };
+  const std::vector<cv::Point2f> ends = calib.project(Cam::kLeft, {along(o.min_depth), along(o.max_depth)});
+  const double length = cv::norm(ends[0] - ends[1]);
+  const int samples = std::clamp(static_cast<int>(length * 1.5), 16, 20000);
+  std::vector<Eigen::Vector3d> pts;
+  pts.reserve(static_cast<std::size_t>(samples));
+  const double inv0 = 1.0 / o.max_depth, inv1 = 1.0 / o.min_depth;
+  for (int s = 0; s < samples; ++s) {
+    const Eigen::Vector3d p = along(1.0 / (inv0 + (inv1 - inv0) * s / (samples - 1)));
+    if (p.z() > 1e-3) pts.push_back(p);
+  }
+  const std::vector<cv::Point2f> curve = calib.project(Cam::kLeft, pts);
+
+  // Integer-pixel normalised cross-correlation along the curve.
+  cv::Scalar tm, ts;
+  cv::meanStdDev(templ, tm, ts);
+  if (ts[0] < 1e-3) return std::nullopt;
+  const cv::Mat tz = (templ - tm[0]) / ts[0];
+  double best = -2.0;
+  cv::Point best_p(-1, -1), last(-1000, -1000);
+  for (const auto& c : curve) {
+    const cv::Point q(cvRound(c.x), cvRound(c.y));
+    if (q == last) continue;
+    last = q;
+    if (q.x < h + 1 || q.y < h + 1 || q.x > iml.cols - h - 2 || q.y > iml.rows - h - 2) continue;
+    for (int dy = -1; dy <= 1; ++dy) {  // the curve is drawn at 1 px; allow the rounding
+      cv::Mat patch;
+      iml(cv::Rect(q.x - h, q.y - h + dy, 2 * h + 1, 2 * h + 1)).convertTo(patch, CV_32F);
+      cv::Scalar m, sd;
+      cv::meanStdDev(patch, m, sd);
+      if (sd[0] < 1e-3) continue;
+      const double ncc = tz.dot(patch - m[0]) / (sd[0] * static_cast<double>(tz.total()));
+      if (ncc > best) best = ncc, best_p = {q.x, q.y + dy};
+    }
+  }
+  if (best_p.x < 0 || best < o.min_ncc) return std::nullopt;
+
+  // Pyramidal LK camR → camL from the correlation peak, then the corner in camL.
+  cv::Point2f p(static_cast<float>(best_p.x), static_cast<float>(best_p.y));
+  if (auto q = track_lk(right, left, p_right, p, lk); q && cv::norm(*q - p) < 3.0) p = *q;
+  const auto refined = subpixel_corner(iml, p, o.subpix_half_window, 3.0);
+  if (!refined) return std::nullopt;
+  return StereoMatch{*refined, best};
+}
+
+}  // namespace dentmark::track

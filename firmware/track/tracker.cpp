@@ -1,0 +1,279 @@
+#include "dentmark/firmware/track/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "dentmark/firmware/track/track_error.h"
+
+namespace dentmark::track {
+namespace {
+
+cv::Mat as_grey(const cv::Mat& img) {
+  if (img.channels() == 1) return img;
+  cv::Mat g;
+  cv::cvtColor(img, g, img.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+  return g;
+}
+
+void check_size(const cv::Mat& img, const cv::Size& size, const char* which) {
+  if (img.empty() || img.size() != size || img.depth() != CV_8U)
+    throw TrackError(std::string("tracker: ") + which + " image is not an 8-bit " +
+                     std::to_string(size.width) + "x" + std::to_string(size.height) + " image");
+}
+
+// Searches the template near `around` and refines the corner there.
+std::optional<cv::Point2f> find_near(const cv::Mat& grey, const cv::Mat& templ, const cv::Point2f& around,
+                                     int radius, double min_ncc, int subpix_half) {
+  const int h = templ.cols / 2;
+  const cv::Rect area = cv::Rect(cvRound(around.x) - radius - h, cvRound(around.y) - radius - h,
+                                 2 * (radius + h) + 1, 2 * (radius + h) + 1);
+  if ((area & cv::Rect(0, 0, grey.cols, grey.rows)) != area) return std::nullopt;
+  cv::Mat region, score;
+  grey(area).convertTo(region, CV_32F);
+  cv::matchTemplate(region, templ, score, cv::TM_CCOEFF_NORMED);
+  double best;
+  cv::Point loc;
+  cv::minMaxLoc(score, nullptr, &best, nullptr, &loc);
+  if (!(best >= min_ncc)) return std::nullopt;
+  const cv::Point2f start(static_cast<float>(area.x + loc.x + h), static_cast<float>(area.y + loc.y + h));
+  const auto c = subpixel_corner(grey, start, subpix_half, 2.0);
+  if (!c || cv::norm(*c - around) > radius + 1.0) return std::nullopt;
+  return c;
+}
+
+}  // namespace
+
+Tracker::Tracker(StereoCalibration calibration, TrackerOptions options)
+    : calib_(std::move(calibration)), opt_(options), filter_(Eigen::Vector3d::Zero(), options.filter) {}
+
+FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, double t,
+                           std::span<const cv::Point2f> seeds_right, long index) {
+  const cv::Mat left = as_grey(left_in), right = as_grey(right_in);
+  check_size(left, calib_.size, "left");
+  check_size(right, calib_.size, "right");
+  const ImagePyramid pl(left, opt_.lk), pr(right, opt_.lk);
+
+  struct Candidate {
+    int seed;
+    cv::Point2f l, r;
+    Eigen::Vector3d p;
+  };
+  std::vector<Candidate> found;
+  for (std::size_t k = 0; k < seeds_right.size(); ++k) {
+    const auto cr = refine_seed(right, seeds_right[k], opt_.corner);
+    if (!cr) continue;
+    const auto m = match_right_to_left(calib_, pr, pl, *cr, opt_.stereo, opt_.lk);
+    if (!m) continue;
+    const Triangulation tri = triangulate(calib_, calib_.normalize(Cam::kLeft, {m->left})[0],
+                                          calib_.normalize(Cam::kRight, {*cr})[0]);
+    if (tri.reprojection_px > opt_.max_reprojection || !(tri.p_camL.z() > 0)) continue;
+    // Two seeds that snapped onto one corner give one feature.
+    const bool duplicate = std::any_of(found.begin(), found.end(),
+                                       [&](const Candidate& c) { return cv::norm(c.r - *cr) < 2.0; });
+    if (!duplicate) found.push_back({static_cast<int>(k), m->left, *cr, tri.p_camL});
+  }
+  // Features on one panel lie at similar depths; a far-off one matched the wrong corner.
+  if (!found.empty()) {
+    std::vector<double> z;
+    for (const auto& c : found) z.push_back(c.p.z());
+    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+    const double med = z[z.size() / 2];
+    std::erase_if(found, [&](const Candidate& c) { return c.p.z() < 0.5 * med || c.p.z() > 2.0 * med; });
+  }
+  if (static_cast<int>(found.size()) < opt_.min_features)
+    throw TrackError("only " + std::to_string(found.size()) + " of " + std::to_string(seeds_right.size()) +
+                     " seeds gave usable stereo features (need " + std::to_string(opt_.min_features) + ")");
+
+  reference_ = ReferenceBuffer();
+  seed_of_feature_.clear();
+  left_.clear();
+  right_.clear();
+  for (const auto& c : found) {
+    ReferenceFeature f;
+    f.p_camL = c.p;
+    f.template_left = patch_at(left, c.l, opt_.template_half);
+    f.template_right = patch_at(right, c.r, opt_.template_half);
+    reference_.add(f);
+    seed_of_feature_.push_back(c.seed);
+    left_.push_back(c.l);
+    right_.push_back(c.r);
+  }
+  active_.assign(found.size(), true);
+  filter_ = MotionFilter(reference_.centroid(), opt_.filter);
+  filter_.reset(t);
+  prev_left_ = pl;
+  prev_right_ = pr;
+  t_prev_ = t;
+  rms_ema_ = 0.0;
+  started_ = true;
+
+  FrameResult r;
+  r.index = index;
+  r.t = t;
+  r.ok = true;
+  r.features = static_cast<int>(found.size());
+  r.quality =
+      static_cast<double>(found.size()) / static_cast<double>(std::max<std::size_t>(seeds_right.size(), 1));
+  return r;
+}
+
+bool Tracker::reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left,
+                        const ImagePyramid& right, Eigen::Vector3d& p) {
+  const Eigen::Vector3d x = motion * reference_[i].p_camL;
+  const cv::Point2f gl = calib_.project(Cam::kLeft, {x})[0], gr = calib_.project(Cam::kRight, {x})[0];
+  const auto l = find_near(left.image(), reference_[i].template_left, gl, opt_.reacquire_radius,
+                           opt_.reacquire_ncc, opt_.corner.subpix_half_window);
+  if (!l) return false;
+  const auto r = find_near(right.image(), reference_[i].template_right, gr, opt_.reacquire_radius,
+                           opt_.reacquire_ncc, opt_.corner.subpix_half_window);
+  if (!r) return false;
+  const Triangulation tri =
+      triangulate(calib_, calib_.normalize(Cam::kLeft, {*l})[0], calib_.normalize(Cam::kRight, {*r})[0]);
+  if (tri.reprojection_px > opt_.max_reprojection || (tri.p_camL - x).norm() > opt_.max_disagreement)
+    return false;
+  p = tri.p_camL;
+  left_[i] = *l;
+  right_[i] = *r;
+  return true;
+}
+
+FrameResult Tracker::skip(double t, long index, const std::string& why) {
+  FrameResult r;
+  r.index = index;
+  r.t = t;
+  r.ok = false;
+  r.motion = started_ ? filter_.predict(t) : Transform::Identity();
+  r.raw_motion = r.motion;
+  r.note = why;
+  return r;
+}
+
+FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, double t, long index) {
+  if (!started_) throw TrackError("tracker: track() before start()");
+  const cv::Mat left = as_grey(left_in), right = as_grey(right_in);
+  check_size(left, calib_.size, "left");
+  check_size(right, calib_.size, "right");
+  const ImagePyramid pl(left, opt_.lk), pr(right, opt_.lk);
+  const std::size_t n = reference_.size();
+  const std::vector<Eigen::Vector3d> ref = reference_.points();
+
+  // Constant-velocity prediction: where each feature should be now, in both cameras.
+  const Transform predicted = filter_.predict(t);
+  std::vector<Eigen::Vector3d> xp(n);
+  for (std::size_t i = 0; i < n; ++i) xp[i] = predicted * ref[i];
+  const std::vector<cv::Point2f> gl = calib_.project(Cam::kLeft, xp), gr = calib_.project(Cam::kRight, xp);
+
+  std::vector<Eigen::Vector3d> current(n, Eigen::Vector3d::Zero());
+  std::vector<bool> valid(n, false);
+  auto follow = [&](const ImagePyramid& prev, const ImagePyramid& cur, const cv::Point2f& from,
+                    const cv::Point2f& guess, const cv::Mat& templ) -> std::optional<cv::Point2f> {
+    const auto fwd = track_lk(prev, cur, from, guess, opt_.lk);
+    if (!fwd) return std::nullopt;
+    const auto back = track_lk(cur, prev, *fwd, from, opt_.lk);
+    if (!back || cv::norm(*back - from) > opt_.max_fb_error) return std::nullopt;
+    const auto c = subpixel_corner(cur.image(), *fwd, opt_.corner.subpix_half_window, opt_.max_subpix_shift);
+    if (!c || patch_ncc(cur.image(), *c, templ) < opt_.min_appearance_ncc) return std::nullopt;
+    return c;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!active_[i]) continue;
+    const auto l = follow(prev_left_, pl, left_[i], gl[i], reference_[i].template_left);
+    const auto r = l ? follow(prev_right_, pr, right_[i], gr[i], reference_[i].template_right) : std::nullopt;
+    if (!l || !r) continue;
+    const Triangulation tri =
+        triangulate(calib_, calib_.normalize(Cam::kLeft, {*l})[0], calib_.normalize(Cam::kRight, {*r})[0]);
+    if (tri.reprojection_px > opt_.max_reprojection) continue;
+    current[i] = tri.p_camL;
+    valid[i] = true;
+    left_[i] = *l;
+    right_[i] = *r;
+  }
+  // Geometric check against the reference layout (rigid: distances are kept).
+  const std::vector<double> dis = reference_.distance_disagreement(current, valid);
+  for (std::size_t i = 0; i < n; ++i)
+    if (valid[i] && dis[i] > opt_.max_disagreement) valid[i] = false;
+
+  FrameResult result = fit_and_filter(index, t, current, valid);
+  if (!result.ok) {
+    // Everything was lost (e.g. a full occlusion): look again where the prediction says.
+    bool any = false;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!valid[i] && reacquire(i, predicted, pl, pr, current[i])) valid[i] = any = true;
+    if (any) result = fit_and_filter(index, t, current, valid);
+  }
+  if (result.ok) {
+    // Re-acquire lost features near their positions under this frame's motion.
+    bool any = false;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!valid[i] && reacquire(i, result.raw_motion, pl, pr, current[i])) valid[i] = any = true;
+    if (any) result = fit_and_filter(index, t, current, valid);
+  }
+  for (std::size_t i = 0; i < n; ++i) active_[i] = valid[i];
+  if (result.ok) {
+    // Keep filter state only from accepted fits.
+    const double spread = [&] {
+      const Eigen::Vector3d c = reference_.centroid();
+      double s = 0.0;
+      for (const auto& p : ref) s += (p - c).squaredNorm();
+      return std::sqrt(s / static_cast<double>(n));
+    }();
+    rms_ema_ = rms_ema_ > 0.0 ? 0.9 * rms_ema_ + 0.1 * result.rms : result.rms;
+    const double sigma_point = std::max(rms_ema_, opt_.robust.noise_floor * 0.5);
+    const double k = 1.0 / std::sqrt(static_cast<double>(result.features));
+    result.motion = filter_.update(t, result.raw_motion, Eigen::Vector3d::Constant(sigma_point * k / spread),
+                                   Eigen::Vector3d::Constant(sigma_point * k));
+  } else {
+    result.motion = predicted;
+    result.raw_motion = predicted;
+  }
+  prev_left_ = pl;
+  prev_right_ = pr;
+  t_prev_ = t;
+  return result;
+}
+
+FrameResult Tracker::fit_and_filter(long index, double t, std::vector<Eigen::Vector3d>& current,
+                                    std::vector<bool>& valid) {
+  FrameResult r;
+  r.index = index;
+  r.t = t;
+  std::vector<Eigen::Vector3d> from, to;
+  std::vector<double> w;
+  std::vector<std::size_t> ids;
+  std::vector<double> z;
+  for (std::size_t i = 0; i < valid.size(); ++i)
+    if (valid[i]) z.push_back(current[i].z());
+  if (static_cast<int>(z.size()) < opt_.min_features) {
+    r.note = "only " + std::to_string(z.size()) + " features tracked";
+    return r;
+  }
+  std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+  const double zmed = z[z.size() / 2];
+  for (std::size_t i = 0; i < valid.size(); ++i) {
+    if (!valid[i]) continue;
+    from.push_back(reference_[i].p_camL);
+    to.push_back(current[i]);
+    // Triangulation error grows with depth squared; weight = 1 / variance.
+    w.push_back(std::pow(zmed / current[i].z(), 4));
+    ids.push_back(i);
+  }
+  try {
+    const RobustMotion fit = fit_rigid_robust(from, to, w, opt_.robust);
+    if (fit.inliers < opt_.min_features) throw GeometryError("too few inliers");
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      if (!fit.inlier[k]) valid[ids[k]] = false;
+    r.ok = true;
+    r.features = fit.inliers;
+    r.raw_motion = fit.T_to_from;
+    r.motion = fit.T_to_from;
+    r.rms = fit.rms;
+    const double share = static_cast<double>(fit.inliers) / static_cast<double>(reference_.size());
+    r.quality = share / (1.0 + std::pow(fit.rms / 1e-3, 2));
+  } catch (const GeometryError& e) {
+    r.note = e.what();
+  }
+  return r;
+}
+
+}  // namespace dentmark::track

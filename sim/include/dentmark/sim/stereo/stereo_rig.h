@@ -1,0 +1,32 @@
+#pragma once
+// The tracking stereo pair as the renderer sees it (design.md §2: camL, camR) and its
+// OpenCV FileStorage form, the `stereo.yaml` of a sequence directory.
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+
+#include "dentmark/common/geometry/transform.h"
+
+namespace dentmark::stereo {
+
+struct PinholeCamera {
+  cv::Matx33d K = cv::Matx33d::eye();
+  cv::Mat D = cv::Mat::zeros(1, 5, CV_64F);  // OpenCV (k1, k2, p1, p2, k3)
+};
+
+struct StereoRig {
+  cv::Size size{1280, 1024};
+  PinholeCamera left, right;
+  // p_camR = T_camR_camL * p_camL (OpenCV's R, T of stereoCalibrate), metres.
+  Transform T_camR_camL = Transform::Identity();
+};
+
+// A horizontal pair: camR sits baseline_m along camL's +x and is turned toe_in_rad
+// about y towards camL's axis, so both look at a point in front of the pair.
+// k1 is the radial distortion given to both cameras (0: none).
+StereoRig make_rig(cv::Size size, double focal_px, double baseline_m, double toe_in_rad, double k1 = 0.0);
+
+// Writes image_width, image_height, K1, D1, K2, D2, R, T as OpenCV FileStorage YAML.
+void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path);
+
+}  // namespace dentmark::stereo

@@ -1,0 +1,150 @@
+#include "dentmark/sim/stereo/sequence_writer.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <numbers>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "dentmark/sim/stereo/panel_motion.h"
+#include "dentmark/sim/stereo/stereo_renderer.h"
+
+namespace dentmark::stereo {
+namespace fs = std::filesystem;
+namespace {
+
+void check_options(const SequenceOptions& o) {
+  auto bad = [](const std::string& what) { throw SequenceError("synth stereo: " + what); };
+  if (o.width < 64 || o.height < 64 || o.width > 8192 || o.height > 8192)
+    bad("image size must be 64..8192 px");
+  if (!(o.focal_px > 10.0)) bad("focal length must be > 10 px");
+  if (!(o.baseline > 0.0) || !(o.distance > 0.3)) bad("baseline must be > 0 m and distance > 0.3 m");
+  if (!(o.seconds >= 0.0) || !(o.fps > 0.0) || o.seconds * o.fps > 100000) bad("need seconds >= 0, fps > 0");
+  if (!(o.lighting >= 0.0 && o.lighting < 0.9)) bad("lighting swing must be in [0, 0.9)");
+  if (!(o.noise_sigma >= 0.0) || !(o.blur_sigma >= 0.0) || !(o.seed_error >= 0.0))
+    bad("negative noise/blur/seed error");
+}
+
+void write_points(const fs::path& path, const std::vector<Eigen::Vector3d>& pts) {
+  std::ofstream f(path);
+  f << "x,y,z\n" << std::setprecision(12);
+  for (const auto& p : pts) f << p.x() << "," << p.y() << "," << p.z() << "\n";
+  if (!f) throw SequenceError(path.string() + ": write failed");
+}
+
+void render_into(const SequenceOptions& o, const fs::path& dir) {
+  const double toe_in = std::atan(0.5 * o.baseline / o.distance);
+  const StereoRig rig = make_rig({o.width, o.height}, o.focal_px, o.baseline, toe_in, o.k1);
+  const StereoRenderer renderer(rig, make_door());
+  const DoorModel& door = renderer.door();
+
+  PanelMotion motion;
+  motion.speed = o.speed;
+  motion.vibration = o.vibration;
+  motion.stop_at = o.stop_at;
+  motion.stop_for = o.stop_for;
+  motion.direction = Eigen::Vector3d(1.0, 0.0, 0.08).normalized();
+  const double travel = o.speed * o.seconds;
+  Transform pose0 = Transform::Identity();
+  pose0.linear() =
+      (Eigen::AngleAxisd(0.12, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  // The run is centred where the two views overlap (half a baseline right of camL).
+  pose0.translation() = Eigen::Vector3d(0.5 * o.baseline, 0.2, o.distance) - 0.5 * travel * motion.direction;
+  motion.T_camL_panel0 = pose0;
+
+  write_stereo_yaml(rig, dir / "stereo.yaml");
+  fs::create_directories(dir / "left");
+  fs::create_directories(dir / "right");
+
+  cv::RNG rng(o.seed);
+  {  // Seeds: the right-image corners of frame 0, deliberately a few pixels off.
+    cv::Mat seeds(static_cast<int>(door.features.size()), 2, CV_32F);
+    for (std::size_t i = 0; i < door.features.size(); ++i) {
+      const cv::Point2d p =
+          renderer.project(Eye::kRight, pose0, {door.features[i].x(), door.features[i].y(), 0.0});
+      seeds.at<float>(static_cast<int>(i), 0) =
+          static_cast<float>(p.x + rng.uniform(-o.seed_error, o.seed_error));
+      seeds.at<float>(static_cast<int>(i), 1) =
+          static_cast<float>(p.y + rng.uniform(-o.seed_error, o.seed_error));
+    }
+    cv::FileStorage sf((dir / "seeds.yaml").string(), cv::FileStorage::WRITE);
+    sf << "seeds_right" << seeds;
+  }
+  std::vector<Eigen::Vector3d> eval, feats;
+  for (const auto& q : door.lower_panel_points) eval.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
+  for (const auto& q : door.features) feats.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
+  write_points(dir / "eval_points.csv", eval);
+  write_points(dir / "features.csv", feats);
+
+  std::ofstream frames(dir / "frames.csv"), truth(dir / "truth.csv");
+  frames << "index,t,left,right\n" << std::setprecision(12);
+  truth << "index,t,m00,m01,m02,m03,m10,m11,m12,m13,m20,m21,m22,m23\n" << std::setprecision(15);
+  const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
+  const std::vector<int> png{cv::IMWRITE_PNG_COMPRESSION, 1};
+  for (int k = 0; k < n; ++k) {
+    const double t = k / o.fps;
+    const Transform pose = motion.T_camL_panel(t);
+    RenderConditions c;
+    c.gain = 1.0 + o.lighting * std::sin(2.0 * std::numbers::pi * t / std::max(o.seconds, 1e-9));
+    c.blur_sigma = o.blur_sigma;
+    c.noise_sigma = o.noise_sigma;
+    if (o.occlude && t >= 0.3 * o.seconds && t <= 0.6 * o.seconds) {
+      // The arm comes down in front of the window frame's left end and moves with the panel.
+      Occluder arm;
+      arm.a = pose * Eigen::Vector3d(-0.48, 0.02, -0.05);
+      arm.b = pose * Eigen::Vector3d(-0.48, -1.6, -0.6);
+      c.occluder = arm;
+    }
+    std::ostringstream name;
+    name << std::setw(6) << std::setfill('0') << k << ".png";
+    for (Eye eye : {Eye::kLeft, Eye::kRight}) {
+      RenderConditions ce = c;
+      if (eye == Eye::kRight) ce.gain *= 0.96, ce.offset = 3.0;  // the two sensors never match exactly
+      cv::Mat img = renderer.render(eye, pose, ce, rng);
+      if (o.colour) cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
+      const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name.str();
+      if (!cv::imwrite(p.string(), img, png)) throw SequenceError(p.string() + ": cannot write image");
+    }
+    frames << k << "," << t << ",left/" << name.str() << ",right/" << name.str() << "\n";
+    const Transform m = motion.motion(t);
+    truth << k << "," << t;
+    for (int r = 0; r < 3; ++r)
+      for (int col = 0; col < 4; ++col) truth << "," << m.matrix()(r, col);
+    truth << "\n";
+  }
+  if (!frames || !truth) throw SequenceError(dir.string() + ": write failed");
+}
+
+}  // namespace
+
+void write_sequence(const SequenceOptions& options, const fs::path& dir) {
+  check_options(options);
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec) || !fs::is_empty(dir, ec))
+      throw SequenceError(dir.string() + ": exists and is not an empty directory");
+    fs::remove(dir, ec);
+  }
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  if (!fs::is_directory(parent, ec)) throw SequenceError(parent.string() + ": no such directory");
+  const fs::path tmp = parent / (dir.filename().string() + ".partial-" + std::to_string(::getpid()));
+  fs::remove_all(tmp, ec);
+  try {
+    fs::create_directories(tmp);
+    render_into(options, tmp);
+    fs::rename(tmp, dir);
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(tmp, ec);
+    throw SequenceError(e.what());
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+}
+
+}  // namespace dentmark::stereo

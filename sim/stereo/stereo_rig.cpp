@@ -1,0 +1,43 @@
+#include "dentmark/sim/stereo/stereo_rig.h"
+
+#include <opencv2/core/eigen.hpp>
+
+#include "dentmark/sim/stereo/sequence_writer.h"
+
+namespace dentmark::stereo {
+
+StereoRig make_rig(cv::Size size, double focal_px, double baseline_m, double toe_in_rad, double k1) {
+  StereoRig rig;
+  rig.size = size;
+  // Principal points slightly off centre, as real calibrations have them.
+  const cv::Matx33d k(focal_px, 0, 0.5 * size.width - 3.5, 0, focal_px, 0.5 * size.height + 2.25, 0, 0, 1);
+  rig.left.K = k;
+  rig.right.K = cv::Matx33d(focal_px * 1.002, 0, 0.5 * size.width + 4.0, 0, focal_px * 1.002,
+                            0.5 * size.height - 1.5, 0, 0, 1);
+  rig.left.D = cv::Mat::zeros(1, 5, CV_64F);
+  rig.right.D = cv::Mat::zeros(1, 5, CV_64F);
+  rig.left.D.at<double>(0) = k1;
+  rig.right.D.at<double>(0) = k1;
+  // camR at c = (baseline, 0, 0) in camL, turned about y so its axis leans towards camL's.
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(toe_in_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  rig.T_camR_camL = Transform::Identity();
+  rig.T_camR_camL.linear() = r;
+  rig.T_camR_camL.translation() = -r * Eigen::Vector3d(baseline_m, 0.0, 0.0);
+  return rig;
+}
+
+void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path) {
+  cv::FileStorage fs(path.string(), cv::FileStorage::WRITE);
+  if (!fs.isOpened()) throw SequenceError(path.string() + ": cannot open for writing");
+  cv::Mat r, t;
+  const Eigen::Matrix3d rr = rig.T_camR_camL.linear();
+  const Eigen::Vector3d tt = rig.T_camR_camL.translation();
+  cv::eigen2cv(rr, r);
+  cv::eigen2cv(tt, t);
+  fs << "image_width" << rig.size.width << "image_height" << rig.size.height;
+  fs << "K1" << cv::Mat(rig.left.K) << "D1" << rig.left.D << "K2" << cv::Mat(rig.right.K) << "D2"
+     << rig.right.D;
+  fs << "R" << r << "T" << t;
+}
+
+}  // namespace dentmark::stereo

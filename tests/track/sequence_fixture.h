@@ -1,0 +1,47 @@
+#pragma once
+// Renders small stereo sequences into temporary directories for the tracker tests.
+
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <string>
+
+#include "dentmark/sim/stereo/sequence_writer.h"
+
+namespace dentmark::track::testing {
+
+// A temporary directory removed when it goes out of scope.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = std::filesystem::temp_directory_path() /
+            ("dentmark-track-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// The station's geometry at half resolution (640 x 512, f = 870 px): the same angles
+// as 1280 x 1024 at f = 1740 px, a quarter of the pixels, so tests stay fast.
+inline stereo::SequenceOptions small_sequence(double seconds, double fps = 10.0) {
+  stereo::SequenceOptions o;
+  o.width = 640;
+  o.height = 512;
+  o.focal_px = 870.0;
+  o.seconds = seconds;
+  o.fps = fps;
+  return o;
+}
+
+}  // namespace dentmark::track::testing
