@@ -23,6 +23,13 @@ void set_timeout(modbus_t* ctx, double seconds, int (*setter)(modbus_t*, uint32_
   setter(ctx, sec, std::min<uint32_t>(usec, 999999));
 }
 
+// Errors of the bytes on a serial line (no reply, bad CRC, wrong unit or function):
+// the port itself is fine, so flushing and retrying is enough.
+bool is_line_error(int err) {
+  return err == ETIMEDOUT || err == EMBBADCRC || err == EMBBADDATA || err == EMBBADEXC || err == EMBUNKEXC ||
+         err == EMBMDATA || err == EMBBADSLAVE;
+}
+
 }  // namespace
 
 ModbusRobot::ModbusRobot(const board::ModbusConfig& config, clock::Clock& clock, double reconnect_backoff)
@@ -76,6 +83,7 @@ void ModbusRobot::open_link() {
 
 template <class Request>
 void ModbusRobot::with_retry(const char* what, Request request) {
+  const bool rtu = config_.transport == board::ModbusTransport::kRtu;
   for (int attempt = 0; attempt < 2; ++attempt) {
     if (!connected_) {
       // Back off between failed reconnects so a dead robot is not hammered; the
@@ -85,6 +93,9 @@ void ModbusRobot::with_retry(const char* what, Request request) {
                          endpoint() + ": " + what + ": link down, reconnect pending");
       open_link();
     }
+    // A serial line keeps bytes of a late or garbled reply; drop them so they cannot
+    // pair with this request.
+    if (rtu) modbus_flush(ctx_);
     ++counters_.requests;
     errno = 0;
     if (request(ctx_) >= 0) return;
@@ -95,9 +106,11 @@ void ModbusRobot::with_retry(const char* what, Request request) {
                        endpoint() + ": " + what + ": exception reply: " + modbus_strerror(err));
     }
     if (err == ETIMEDOUT) ++counters_.timeouts;
-    // Timeout, reset or garbled reply: a late answer could pair with the next request,
-    // so drop the link and start clean.
-    close_link();
+    if (!rtu || !is_line_error(err)) {
+      // TCP: a late answer could pair with the next request, so drop the connection
+      // and start clean. RTU: the device itself failed (EIO, unplugged adapter): reopen.
+      close_link();
+    }
     if (attempt == 1)
       throw RobotError(err == ETIMEDOUT ? RobotError::Kind::kTimeout : RobotError::Kind::kDisconnected,
                        endpoint() + ": " + what + ": " + modbus_strerror(err));

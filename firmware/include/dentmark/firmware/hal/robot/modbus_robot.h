@@ -1,9 +1,11 @@
 #pragma once
 // Robot over Modbus TCP or RTU with libmodbus (docs/robot-modbus.md).
 //
-// Link policy: every request has the board's response timeout. A failed request
-// (timeout, connection reset) closes the link, reconnects once and retries once:
-// commands are safe to repeat because the robot acts only on a new sequence number.
+// Link policy: every request has the board's response timeout. A failed request is
+// retried once: commands are safe to repeat because the robot acts only on a new
+// sequence number. Before the retry, TCP closes and reconnects (a late reply must not
+// pair with the next request); RTU flushes the line (and before every request) and
+// reopens the device only when the device itself failed.
 // A second failure throws RobotError; the next call tries to reconnect again, no
 // sooner than 'reconnect_backoff' after the last attempt. Exception replies are not
 // link failures and are thrown at once.
