@@ -1,0 +1,50 @@
+#pragma once
+// The detection pipeline (design.md §3): triangles -> linear octree (eq. 1-3) ->
+// feature groups (eq. 4) and deviation from a robust reference surface -> candidates ->
+// classes (dent, bump, design_feature, noise) with position, 30 x 30 mm normal,
+// diameter, signed height, area and score.
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dentmark/common/protocol/messages.h"
+#include "dentmark/host/detect/config.h"
+#include "dentmark/host/detect/height_map.h"
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::detect {
+
+struct DetectionStats {
+  std::size_t vertices = 0, triangles = 0;
+  double surface_area = 0.0;       // m²
+  double spacing = 0.0;            // m, median edge length
+  double leaf_size = 0.0;          // m, finest node edge used
+  int depth = 0;                   // octree depth
+  std::size_t leaves = 0;          // occupied finest nodes
+  double noise_floor_sigma = 0.0;  // median leaf normal spread (eq. 3)
+  std::size_t feature_leaves = 0, feature_groups = 0;
+  double deviation_noise = 0.0;   // m, robust sigma of the per-pixel deviation
+  std::size_t working_bytes = 0;  // memory beyond the mesh
+};
+
+struct Finding {
+  protocol::Defect defect;
+  std::string reason;  // why this class (for people)
+  int pixels = 0;
+};
+
+struct Detection {
+  std::vector<Finding> defects;   // dent, bump, hole
+  std::vector<Finding> features;  // design_feature, noise
+  DetectionStats stats;
+  std::vector<std::pair<std::string, double>> timing;  // stage, seconds
+  HeightMap map;
+  std::vector<float> deviation;      // per pixel, m along the normal (NaN: none)
+  std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
+};
+
+Detection detect(const ingest::Mesh& mesh, const DetectConfig& config);
+
+}  // namespace dentmark::detect

@@ -1,0 +1,41 @@
+#pragma once
+// The scan seen as a height field: octree leaves projected onto the panel's mean plane
+// (axes u, v; w towards the sensor), one pixel per finest node. A single-view SLS scan
+// is a height field over its image, and so over a plane near its view direction.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <vector>
+
+#include "dentmark/host/detect/linear_octree.h"
+
+namespace dentmark::detect {
+
+struct HeightMap {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();    // scan frame, m
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();  // rows u, v, w in scan frame
+  double pixel = 0.001;                                // m
+  int cols = 0, rows = 0;
+  double u0 = 0.0, v0 = 0.0;    // map coordinates of pixel (0, 0)'s corner
+  std::vector<float> weight;    // Σ a / pixel² (0: no surface)
+  std::vector<float> u, v, w;   // area-weighted mean point in map coordinates (m)
+  std::vector<float> cos_tilt;  // |mean normal · w|: converts w offsets to normal offsets
+
+  std::size_t size() const { return static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows); }
+  Eigen::Vector3d to_scan(double pu, double pv, double pw) const {
+    return origin + axes.transpose() * Eigen::Vector3d(pu, pv, pw);
+  }
+  Eigen::Vector3d to_map(const Eigen::Vector3d& p) const { return axes * (p - origin); }
+  // Pixel holding map point (pu, pv), or -1 outside.
+  long pixel_of(double pu, double pv) const;
+};
+
+// Projects the leaves. 'w' points to the frame origin's side (the sensor's) of the plane.
+HeightMap build_height_map(const LinearOctree& tree, double pixel);
+
+// Reference surface: at each pixel, the weighted least-squares quadratic over a square
+// window (moving least squares), evaluated from fits at tile centres and blended
+// bilinearly. weights: per pixel (0 excludes it). NaN where no fit is possible.
+std::vector<float> fit_reference(const HeightMap& map, const std::vector<float>& weights, double window);
+
+}  // namespace dentmark::detect

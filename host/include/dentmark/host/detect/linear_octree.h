@@ -1,0 +1,64 @@
+#pragma once
+// The paper's octree (§III-A) as a linear octree: every triangle gets the Morton code of
+// its centroid at the finest depth; after one sort, every node at every depth is a
+// contiguous range of leaves. Per leaf the additive sums A = Σ a_i (eq. 1) and
+// S = Σ a_i N_i are kept, so a node's mean normal (eq. 2) is S/A and its weighted spread
+// (eq. 3) is σ² = Σ a_i |N_i − N̄|² / A = 1 − |S/A|² (the N_i are unit vectors): one
+// pass of sums gives every node.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::detect {
+
+struct OctreeLeaf {
+  std::uint64_t key = 0;                             // Morton code at the finest depth
+  double area = 0.0;                                 // A = Σ a_i (m²)
+  Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();  // S = Σ a_i N_i (m²)
+  Eigen::Vector3d sum_ac = Eigen::Vector3d::Zero();  // Σ a_i c_i, c_i the centroid (m³)
+  std::uint32_t first = 0, count = 0;                // range in LinearOctree::order
+};
+
+struct NodeStats {
+  double area = 0.0;
+  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();  // eq. (2), not normalised
+  double sigma = 0.0;                                     // eq. (3), rad-like
+};
+
+class LinearOctree {
+ public:
+  // Builds the leaves at the depth whose node edge is leaf_size (m).
+  static LinearOctree build(const ingest::Mesh& mesh, double leaf_size);
+
+  const std::vector<OctreeLeaf>& leaves() const { return leaves_; }
+  const std::vector<std::uint32_t>& order() const { return order_; }  // triangle ids by leaf
+  int depth() const { return depth_; }
+  double leaf_size() const { return leaf_size_; }
+  const Eigen::Vector3d& origin() const { return origin_; }
+
+  // Eq. (2)-(3) over leaves [begin, end).
+  NodeStats stats(std::size_t begin, std::size_t end) const;
+  // Top-down subdivision (eq. 3): nodes whose σ exceeds split_sigma are subdivided down
+  // to the finest depth; returns the leaves reached whose own σ exceeds leaf_sigma.
+  std::vector<std::uint32_t> feature_leaves(double split_sigma, double leaf_sigma) const;
+  // Integer cell of a leaf key.
+  static Eigen::Vector3i decode(std::uint64_t key);
+  static std::uint64_t encode(const Eigen::Vector3i& cell);
+
+  // Sizes for memory accounting.
+  std::size_t bytes() const;
+
+ private:
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+  double leaf_size_ = 0.0;
+  int depth_ = 0;
+  std::vector<OctreeLeaf> leaves_;
+  std::vector<std::uint32_t> order_;
+  std::vector<double> prefix_area_;  // prefix sums for O(1) node stats
+  std::vector<Eigen::Vector3d> prefix_an_;
+};
+
+}  // namespace dentmark::detect

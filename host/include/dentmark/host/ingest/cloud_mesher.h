@@ -1,0 +1,19 @@
+#pragma once
+// Meshes a point cloud in the sensor's view (2.5D): a structured-light sensor sees the
+// surface as a height field over its image, so neighbours in the image are neighbours
+// on the surface. Works for organised and unorganised clouds, in any point order.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::ingest {
+
+// Builds triangles over 'mesh.vertices' (mesh.triangles is replaced). The view is the
+// perspective from the frame origin when every point lies in front of it (z > 0, the
+// 'sls' convention), otherwise an orthographic view along the cloud's least-variance axis.
+// Triangles whose longest edge exceeds 4x the point spacing (depth jumps) are not made.
+void mesh_point_cloud(Mesh& mesh);
+
+}  // namespace dentmark::ingest

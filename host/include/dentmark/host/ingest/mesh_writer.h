@@ -1,0 +1,18 @@
+#pragma once
+// Binary little-endian PLY output of a mesh, optionally with per-vertex colours.
+// Written to a temporary file and renamed, so a failure never leaves half a file.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::ingest {
+
+// colours: empty, or one RGB per vertex. Throws IngestError on I/O failure.
+void write_ply(const std::string& path, const Mesh& mesh,
+               const std::vector<std::array<std::uint8_t, 3>>& colours = {});
+
+}  // namespace dentmark::ingest

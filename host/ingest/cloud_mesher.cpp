@@ -1,0 +1,153 @@
+#include "dentmark/host/ingest/cloud_mesher.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace dentmark::ingest {
+namespace {
+
+// Image coordinates of each point in the chosen view.
+struct View {
+  bool perspective = true;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // rows: image axes u, v, depth
+};
+
+View choose_view(const std::vector<Eigen::Vector3f>& pts) {
+  View view;
+  bool all_front = true;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  for (const auto& p : pts) {
+    if (!p.allFinite()) continue;
+    if (p.z() <= 0.0f) all_front = false;
+    mean += p.cast<double>();
+    ++n;
+  }
+  mean /= static_cast<double>(std::max<std::size_t>(n, 1));
+  // A perspective view only makes sense when the points are well in front of the
+  // origin (a sensor frame); otherwise look along the least-variance axis.
+  if (all_front && mean.z() > 0.0) {
+    double max_tan = 0.0;
+    for (const auto& p : pts)
+      if (p.allFinite()) max_tan = std::max<double>(max_tan, std::hypot(p.x(), p.y()) / p.z());
+    if (max_tan < 3.0) return view;
+  }
+  view.perspective = false;
+  Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) {
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3d d = p.cast<double>() - mean;
+    c += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(c);
+  view.R.row(0) = eig.eigenvectors().col(2).transpose();
+  view.R.row(1) = eig.eigenvectors().col(1).transpose();
+  view.R.row(2) = eig.eigenvectors().col(0).transpose();
+  return view;
+}
+
+}  // namespace
+
+void mesh_point_cloud(Mesh& mesh) {
+  mesh.triangles.clear();
+  mesh.from_point_cloud = true;
+  const auto& pts = mesh.vertices;
+  const View view = choose_view(pts);
+  std::vector<Eigen::Vector2d> img(pts.size());
+  std::vector<std::uint32_t> valid;
+  valid.reserve(pts.size());
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::max()), hi = -lo;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (!pts[i].allFinite()) continue;
+    const Eigen::Vector3d q = view.R * pts[i].cast<double>();
+    img[i] = view.perspective ? Eigen::Vector2d(q.x() / q.z(), q.y() / q.z()) : Eigen::Vector2d(q.x(), q.y());
+    lo = lo.cwiseMin(img[i]);
+    hi = hi.cwiseMax(img[i]);
+    valid.push_back(static_cast<std::uint32_t>(i));
+  }
+  if (valid.size() < 3) return;
+  const Eigen::Vector2d ext = (hi - lo).cwiseMax(1e-12);
+  // Spacing in the image: first from the bounding box, then corrected by the
+  // fraction of a coarse grid that is occupied (panels have openings and margins).
+  double cell = std::sqrt(ext.x() * ext.y() / static_cast<double>(valid.size()));
+  for (int pass = 0; pass < 2; ++pass) {
+    const double coarse = 4.0 * cell;
+    const auto gw = static_cast<std::size_t>(ext.x() / coarse) + 1,
+               gh = static_cast<std::size_t>(ext.y() / coarse) + 1;
+    if (gw * gh > 64'000'000) break;
+    std::vector<std::uint8_t> occ(gw * gh, 0);
+    for (auto i : valid) {
+      const auto gx = static_cast<std::size_t>((img[i].x() - lo.x()) / coarse);
+      const auto gy = static_cast<std::size_t>((img[i].y() - lo.y()) / coarse);
+      occ[std::min(gy, gh - 1) * gw + std::min(gx, gw - 1)] = 1;
+    }
+    const double frac =
+        static_cast<double>(std::count(occ.begin(), occ.end(), 1)) / static_cast<double>(occ.size());
+    cell = std::sqrt(frac * ext.x() * ext.y() / static_cast<double>(valid.size()));
+  }
+  // One point per grid cell (the one nearest the cell centre); cells slightly
+  // smaller than the spacing so that few points are lost.
+  cell *= 0.85;
+  const auto W = static_cast<std::size_t>(ext.x() / cell) + 2,
+             H = static_cast<std::size_t>(ext.y() / cell) + 2;
+  if (W * H > 400'000'000ull) return;
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> grid(W * H, kNone);
+  std::vector<float> best(W * H, std::numeric_limits<float>::max());
+  for (auto i : valid) {
+    const double fx = (img[i].x() - lo.x()) / cell, fy = (img[i].y() - lo.y()) / cell;
+    const auto gx = static_cast<std::size_t>(fx), gy = static_cast<std::size_t>(fy);
+    const auto d = static_cast<float>(
+        std::hypot(fx - static_cast<double>(gx) - 0.5, fy - static_cast<double>(gy) - 0.5));
+    const std::size_t k = gy * W + gx;
+    if (d < best[k]) best[k] = d, grid[k] = i;
+  }
+  // 3D spacing: median nearest-grid-neighbour distance, for the depth-jump test.
+  std::vector<float> edges;
+  for (std::size_t y = 0; y + 1 < H && edges.size() < 200000; y += 3)
+    for (std::size_t x = 0; x + 1 < W; ++x)
+      if (grid[y * W + x] != kNone && grid[y * W + x + 1] != kNone)
+        edges.push_back((pts[grid[y * W + x]] - pts[grid[y * W + x + 1]]).norm());
+  float max_edge = std::numeric_limits<float>::max();
+  if (!edges.empty()) {
+    std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2),
+                     edges.end());
+    max_edge = 4.0f * edges[edges.size() / 2];
+  }
+  auto ok = [&](std::uint32_t a, std::uint32_t b) { return (pts[a] - pts[b]).norm() <= max_edge; };
+  auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    if (ok(a, b) && ok(b, c) && ok(a, c)) mesh.triangles.push_back({a, b, c});
+  };
+  for (std::size_t y = 0; y + 1 < H; ++y) {
+    for (std::size_t x = 0; x + 1 < W; ++x) {
+      const std::uint32_t a = grid[y * W + x], b = grid[y * W + x + 1], c = grid[(y + 1) * W + x],
+                          d = grid[(y + 1) * W + x + 1];
+      const int n = (a != kNone) + (b != kNone) + (c != kNone) + (d != kNone);
+      if (n == 4) {
+        // Split along the shorter diagonal.
+        if ((pts[a] - pts[d]).squaredNorm() <= (pts[b] - pts[c]).squaredNorm()) {
+          add(a, b, d);
+          add(a, d, c);
+        } else {
+          add(a, b, c);
+          add(b, d, c);
+        }
+      } else if (n == 3) {
+        if (a == kNone)
+          add(b, d, c);
+        else if (b == kNone)
+          add(a, d, c);
+        else if (c == kNone)
+          add(a, b, d);
+        else
+          add(a, b, c);
+      }
+    }
+  }
+}
+
+}  // namespace dentmark::ingest

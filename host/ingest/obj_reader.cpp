@@ -1,0 +1,48 @@
+// Wavefront OBJ: 'v x y z [w]' and 'f a[/t[/n]] b c ...' (1-based, negative = relative);
+// polygons are triangulated as fans; every other statement is skipped.
+#include <vector>
+
+#include "readers.h"
+#include "text_cursor.h"
+
+namespace dentmark::ingest::detail {
+
+Mesh read_obj(const std::string& path, std::string_view bytes) {
+  Mesh mesh;
+  TextCursor cur(path, bytes);
+  std::vector<std::uint32_t> corners;
+  while (true) {
+    cur.skip_space();
+    if (cur.at_end()) break;
+    const std::string_view key = cur.word();
+    if (key == "v") {
+      const double x = cur.number("x"), y = cur.number("y"), z = cur.number("z");
+      mesh.vertices.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    } else if (key == "f") {
+      corners.clear();
+      while (!cur.at_eol()) {
+        const long long i = cur.integer("face vertex index");
+        const long long n = static_cast<long long>(mesh.vertices.size());
+        const long long k = i > 0 ? i - 1 : n + i;
+        if (i == 0 || k < 0 || k >= n)
+          cur.fail("vertex index " + std::to_string(i) + " out of range (" + std::to_string(n) +
+                   " vertices so far)");
+        corners.push_back(static_cast<std::uint32_t>(k));
+        // Skip '/t/n' parts.
+        const std::string_view rest = cur.word();
+        if (!rest.empty() && rest[0] != '/') cur.fail("bad face corner");
+      }
+      if (corners.size() < 3) {
+        ++mesh.dropped_faces;
+      } else {
+        for (std::size_t k = 1; k + 1 < corners.size(); ++k)
+          mesh.triangles.push_back({corners[0], corners[k], corners[k + 1]});
+      }
+    }
+    cur.next_line();
+  }
+  if (mesh.vertices.empty()) throw IngestError(path + ": line 1: no 'v' vertices in the OBJ file");
+  return mesh;
+}
+
+}  // namespace dentmark::ingest::detail

@@ -1,0 +1,393 @@
+// PLY (Turk 1994): ascii, binary_little_endian, binary_big_endian. Vertex x, y, z as
+// any scalar type; faces as a list of indices (any integer count/index types); every
+// other element and property is skipped.
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <vector>
+
+#include "readers.h"
+#include "text_cursor.h"
+
+namespace dentmark::ingest::detail {
+namespace {
+
+enum class Scalar { kI8, kU8, kI16, kU16, kI32, kU32, kF32, kF64 };
+
+std::optional<Scalar> scalar_from(std::string_view s) {
+  if (s == "char" || s == "int8") return Scalar::kI8;
+  if (s == "uchar" || s == "uint8") return Scalar::kU8;
+  if (s == "short" || s == "int16") return Scalar::kI16;
+  if (s == "ushort" || s == "uint16") return Scalar::kU16;
+  if (s == "int" || s == "int32") return Scalar::kI32;
+  if (s == "uint" || s == "uint32") return Scalar::kU32;
+  if (s == "float" || s == "float32") return Scalar::kF32;
+  if (s == "double" || s == "float64") return Scalar::kF64;
+  return std::nullopt;
+}
+
+std::size_t scalar_size(Scalar s) {
+  switch (s) {
+    case Scalar::kI8:
+    case Scalar::kU8:
+      return 1;
+    case Scalar::kI16:
+    case Scalar::kU16:
+      return 2;
+    case Scalar::kI32:
+    case Scalar::kU32:
+    case Scalar::kF32:
+      return 4;
+    case Scalar::kF64:
+      return 8;
+  }
+  return 1;
+}
+
+struct Property {
+  std::string name;
+  Scalar type = Scalar::kF32;
+  bool is_list = false;
+  Scalar count_type = Scalar::kU8;
+};
+
+struct Element {
+  std::string name;
+  std::uint64_t count = 0;
+  std::vector<Property> properties;
+};
+
+enum class Encoding { kAscii, kLittle, kBig };
+
+template <typename T>
+T load(const char* p, bool swap) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  if (swap) {
+    if constexpr (sizeof(T) == 2) {
+      std::uint16_t u;
+      std::memcpy(&u, &v, 2);
+      u = static_cast<std::uint16_t>((u >> 8) | (u << 8));
+      std::memcpy(&v, &u, 2);
+    } else if constexpr (sizeof(T) == 4) {
+      std::uint32_t u;
+      std::memcpy(&u, &v, 4);
+      u = __builtin_bswap32(u);
+      std::memcpy(&v, &u, 4);
+    } else if constexpr (sizeof(T) == 8) {
+      std::uint64_t u;
+      std::memcpy(&u, &v, 8);
+      u = __builtin_bswap64(u);
+      std::memcpy(&v, &u, 8);
+    }
+  }
+  return v;
+}
+
+double load_scalar(const char* p, Scalar s, bool swap) {
+  switch (s) {
+    case Scalar::kI8:
+      return static_cast<std::int8_t>(*p);
+    case Scalar::kU8:
+      return static_cast<std::uint8_t>(*p);
+    case Scalar::kI16:
+      return load<std::int16_t>(p, swap);
+    case Scalar::kU16:
+      return load<std::uint16_t>(p, swap);
+    case Scalar::kI32:
+      return load<std::int32_t>(p, swap);
+    case Scalar::kU32:
+      return load<std::uint32_t>(p, swap);
+    case Scalar::kF32:
+      return load<float>(p, swap);
+    case Scalar::kF64:
+      return load<double>(p, swap);
+  }
+  return 0.0;
+}
+
+std::int64_t load_index(const char* p, Scalar s, bool swap) {
+  switch (s) {
+    case Scalar::kI8:
+      return static_cast<std::int8_t>(*p);
+    case Scalar::kU8:
+      return static_cast<std::uint8_t>(*p);
+    case Scalar::kI16:
+      return load<std::int16_t>(p, swap);
+    case Scalar::kU16:
+      return load<std::uint16_t>(p, swap);
+    case Scalar::kI32:
+      return load<std::int32_t>(p, swap);
+    case Scalar::kU32:
+      return load<std::uint32_t>(p, swap);
+    case Scalar::kF32:
+      return static_cast<std::int64_t>(load<float>(p, swap));
+    case Scalar::kF64:
+      return static_cast<std::int64_t>(load<double>(p, swap));
+  }
+  return -1;
+}
+
+// Adds a polygon as a fan; drops faces with < 3 corners or out-of-range indices fail.
+class FaceSink {
+ public:
+  FaceSink(Mesh& mesh, const std::string& path) : mesh_(mesh), path_(path) {}
+  void begin() { corners_.clear(); }
+  void corner(std::int64_t index, const std::string& where) {
+    if (index < 0 || static_cast<std::uint64_t>(index) >= mesh_.vertices.size())
+      throw IngestError(path_ + ": " + where + ": vertex index " + std::to_string(index) + " out of range (" +
+                        std::to_string(mesh_.vertices.size()) + " vertices)");
+    corners_.push_back(static_cast<std::uint32_t>(index));
+  }
+  void end() {
+    if (corners_.size() < 3) {
+      ++mesh_.dropped_faces;
+      return;
+    }
+    for (std::size_t k = 1; k + 1 < corners_.size(); ++k)
+      mesh_.triangles.push_back({corners_[0], corners_[k], corners_[k + 1]});
+  }
+
+ private:
+  Mesh& mesh_;
+  const std::string& path_;
+  std::vector<std::uint32_t> corners_;
+};
+
+}  // namespace
+
+Mesh read_ply(const std::string& path, std::string_view bytes) {
+  // --- header ---
+  const std::size_t header_end_tag = bytes.find("end_header");
+  if (bytes.substr(0, 3) != "ply" || header_end_tag == std::string_view::npos)
+    throw IngestError(path + ": line 1: not a PLY file (no 'ply' magic or no 'end_header')");
+  std::size_t body = bytes.find('\n', header_end_tag);
+  if (body == std::string_view::npos)
+    throw IngestError(path + ": byte " + std::to_string(bytes.size()) +
+                      ": header not terminated by a newline");
+  ++body;
+  TextCursor hdr(path, bytes.substr(0, body));
+  hdr.next_line();  // "ply"
+  std::optional<Encoding> encoding;
+  std::vector<Element> elements;
+  while (!hdr.at_end()) {
+    const std::string_view key = hdr.word();
+    if (key == "format") {
+      const std::string_view f = hdr.word();
+      if (f == "ascii")
+        encoding = Encoding::kAscii;
+      else if (f == "binary_little_endian")
+        encoding = Encoding::kLittle;
+      else if (f == "binary_big_endian")
+        encoding = Encoding::kBig;
+      else
+        hdr.fail("unknown format '" + std::string(f) + "'");
+    } else if (key == "element") {
+      Element e;
+      e.name = std::string(hdr.word());
+      const long long n = hdr.integer("element count");
+      if (n < 0) hdr.fail("negative element count");
+      e.count = static_cast<std::uint64_t>(n);
+      elements.push_back(std::move(e));
+    } else if (key == "property") {
+      if (elements.empty()) hdr.fail("property before any element");
+      Property prop;
+      const std::string_view t = hdr.word();
+      if (t == "list") {
+        prop.is_list = true;
+        const auto ct = scalar_from(hdr.word());
+        const auto it = scalar_from(hdr.word());
+        if (!ct || !it) hdr.fail("unknown list property type");
+        prop.count_type = *ct;
+        prop.type = *it;
+      } else {
+        const auto st = scalar_from(t);
+        if (!st) hdr.fail("unknown property type '" + std::string(t) + "'");
+        prop.type = *st;
+      }
+      prop.name = std::string(hdr.word());
+      elements.back().properties.push_back(prop);
+    } else if (key == "end_header") {
+      break;
+    } else if (!(key.empty() || key == "comment" || key == "obj_info")) {
+      hdr.fail("unknown header keyword '" + std::string(key) + "'");
+    }
+    hdr.next_line();
+  }
+  if (!encoding) throw IngestError(path + ": line 2: no 'format' line in the PLY header");
+
+  Mesh mesh;
+  FaceSink faces(mesh, path);
+  const bool swap = (*encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
+  const std::size_t header_lines = hdr.line();
+
+  if (*encoding == Encoding::kAscii) {
+    TextCursor cur(path, bytes.substr(body), header_lines + 1);
+    for (const Element& e : elements) {
+      int ix = -1, iy = -1, iz = -1, ilist = -1;
+      for (std::size_t k = 0; k < e.properties.size(); ++k) {
+        const auto& n = e.properties[k].name;
+        if (e.name == "vertex" && !e.properties[k].is_list) {
+          if (n == "x") ix = static_cast<int>(k);
+          if (n == "y") iy = static_cast<int>(k);
+          if (n == "z") iz = static_cast<int>(k);
+        }
+        if (e.name == "face" && e.properties[k].is_list && (n == "vertex_indices" || n == "vertex_index"))
+          ilist = static_cast<int>(k);
+      }
+      if (e.name == "vertex" && (ix < 0 || iy < 0 || iz < 0))
+        throw IngestError(path + ": vertex element lacks x, y or z");
+      if (e.name == "vertex") mesh.vertices.reserve(e.count);
+      if (e.name == "face") mesh.triangles.reserve(e.count);
+      for (std::uint64_t r = 0; r < e.count; ++r) {
+        cur.skip_space();
+        if (cur.at_end())
+          cur.fail("file ends inside element '" + e.name + "' (" + std::to_string(r) + " of " +
+                   std::to_string(e.count) + " read)");
+        double xyz[3] = {0, 0, 0};
+        for (std::size_t k = 0; k < e.properties.size(); ++k) {
+          const Property& p = e.properties[k];
+          if (p.is_list) {
+            const long long n = cur.integer("list count");
+            if (n < 0 || n > 1'000'000) cur.fail("bad list count " + std::to_string(n));
+            const bool take = static_cast<int>(k) == ilist;
+            if (take) faces.begin();
+            for (long long j = 0; j < n; ++j) {
+              const long long idx = cur.integer("vertex index");
+              if (take) faces.corner(idx, "line " + std::to_string(cur.line()));
+            }
+            if (take) faces.end();
+          } else {
+            const double v = cur.number(p.name.c_str());
+            if (static_cast<int>(k) == ix) xyz[0] = v;
+            if (static_cast<int>(k) == iy) xyz[1] = v;
+            if (static_cast<int>(k) == iz) xyz[2] = v;
+          }
+        }
+        if (!cur.at_eol()) cur.fail("extra values at the end of a '" + e.name + "' line");
+        if (e.name == "vertex")
+          mesh.vertices.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                                     static_cast<float>(xyz[2]));
+        cur.next_line();
+      }
+    }
+    return mesh;
+  }
+
+  // --- binary ---
+  const char* const base = bytes.data();
+  std::size_t off = body;
+  const std::size_t size = bytes.size();
+  auto need = [&](std::size_t n, const std::string& what) {
+    if (n > size - off)
+      throw IngestError(path + ": byte " + std::to_string(off) + ": file ends inside " + what);
+  };
+  for (const Element& e : elements) {
+    bool fixed = true;
+    std::size_t stride = 0;
+    for (const auto& p : e.properties) {
+      if (p.is_list)
+        fixed = false;
+      else
+        stride += scalar_size(p.type);
+    }
+    if (e.name == "vertex") {
+      if (!fixed) throw IngestError(path + ": vertex element with list properties is not supported");
+      std::size_t ox = SIZE_MAX, oy = SIZE_MAX, oz = SIZE_MAX, o = 0;
+      Scalar tx = Scalar::kF32, ty = tx, tz = tx;
+      for (const auto& p : e.properties) {
+        if (p.name == "x") ox = o, tx = p.type;
+        if (p.name == "y") oy = o, ty = p.type;
+        if (p.name == "z") oz = o, tz = p.type;
+        o += scalar_size(p.type);
+      }
+      if (ox == SIZE_MAX || oy == SIZE_MAX || oz == SIZE_MAX)
+        throw IngestError(path + ": vertex element lacks x, y or z");
+      if (stride != 0 && e.count > (size - off) / stride)
+        throw IngestError(path + ": byte " + std::to_string(off + (size - off) / stride * stride) +
+                          ": file ends inside vertex " + std::to_string((size - off) / stride) + " of " +
+                          std::to_string(e.count));
+      const std::size_t n = static_cast<std::size_t>(e.count);
+      mesh.vertices.resize(n);
+      const char* src = base + off;
+      const bool fast = !swap && tx == Scalar::kF32 && ty == Scalar::kF32 && tz == Scalar::kF32;
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) {
+        const char* r = src + i * stride;
+        if (fast) {
+          float v[3];
+          std::memcpy(&v[0], r + ox, 4);
+          std::memcpy(&v[1], r + oy, 4);
+          std::memcpy(&v[2], r + oz, 4);
+          mesh.vertices[i] = Eigen::Vector3f(v[0], v[1], v[2]);
+        } else {
+          mesh.vertices[i] = Eigen::Vector3f(static_cast<float>(load_scalar(r + ox, tx, swap)),
+                                             static_cast<float>(load_scalar(r + oy, ty, swap)),
+                                             static_cast<float>(load_scalar(r + oz, tz, swap)));
+        }
+      }
+      off += n * stride;
+      continue;
+    }
+    if (fixed) {  // skip a fixed-size element in one step
+      if (stride != 0 && e.count > (size - off) / stride)
+        throw IngestError(path + ": byte " + std::to_string(size) + ": file ends inside element '" + e.name +
+                          "'");
+      off += static_cast<std::size_t>(e.count) * stride;
+      continue;
+    }
+    const bool is_face = e.name == "face";
+    if (is_face) mesh.triangles.reserve(e.count);
+    // Common layout first: a single list property of uchar/int counts with 3 corners.
+    const bool simple = is_face && e.properties.size() == 1 && e.properties[0].is_list;
+    const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;
+    const std::size_t cs = scalar_size(ct), is = scalar_size(it);
+    const std::uint64_t nv = mesh.vertices.size();
+    for (std::uint64_t r = 0; r < e.count; ++r) {
+      if (simple) {
+        if (cs > size - off) need(cs, "face " + std::to_string(r));
+        const std::int64_t n = load_index(base + off, ct, swap);
+        if (n == 3 && 3 * is + cs <= size - off) {
+          const char* q = base + off + cs;
+          const std::int64_t a = load_index(q, it, swap), b = load_index(q + is, it, swap),
+                             c = load_index(q + 2 * is, it, swap);
+          if (a >= 0 && b >= 0 && c >= 0 && static_cast<std::uint64_t>(a) < nv &&
+              static_cast<std::uint64_t>(b) < nv && static_cast<std::uint64_t>(c) < nv) {
+            mesh.triangles.push_back({static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b),
+                                      static_cast<std::uint32_t>(c)});
+            off += cs + 3 * is;
+            continue;
+          }
+        }
+      }
+      // General path: walk each property.
+      for (const Property& p : e.properties) {
+        if (!p.is_list) {
+          need(scalar_size(p.type), "element '" + e.name + "' " + std::to_string(r));
+          off += scalar_size(p.type);
+          continue;
+        }
+        const std::size_t at = off;
+        need(scalar_size(p.count_type), "element '" + e.name + "' " + std::to_string(r));
+        const std::int64_t n = load_index(base + off, p.count_type, swap);
+        if (n < 0 || n > 1'000'000)
+          throw IngestError(path + ": byte " + std::to_string(at) + ": bad list count " + std::to_string(n));
+        off += scalar_size(p.count_type);
+        need(static_cast<std::size_t>(n) * scalar_size(p.type),
+             "element '" + e.name + "' " + std::to_string(r));
+        const bool take = is_face && (p.name == "vertex_indices" || p.name == "vertex_index");
+        if (take) faces.begin();
+        for (std::int64_t j = 0; j < n; ++j) {
+          if (take) faces.corner(load_index(base + off, p.type, swap), "byte " + std::to_string(off));
+          off += scalar_size(p.type);
+        }
+        if (take) faces.end();
+      }
+    }
+  }
+  return mesh;
+}
+
+}  // namespace dentmark::ingest::detail

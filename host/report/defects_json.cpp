@@ -1,0 +1,223 @@
+#include "dentmark/host/report/defects_json.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace dentmark::report {
+namespace {
+
+const char* class_name(protocol::DefectClass c) {
+  switch (c) {
+    case protocol::DefectClass::kDent:
+      return "dent";
+    case protocol::DefectClass::kBump:
+      return "bump";
+    case protocol::DefectClass::kHole:
+      return "hole";
+    case protocol::DefectClass::kDesignFeature:
+      return "design_feature";
+    case protocol::DefectClass::kNoise:
+      return "noise";
+  }
+  return "noise";
+}
+
+protocol::DefectClass class_from(const std::string& s, const std::string& where) {
+  if (s == "dent") return protocol::DefectClass::kDent;
+  if (s == "bump") return protocol::DefectClass::kBump;
+  if (s == "hole") return protocol::DefectClass::kHole;
+  if (s == "design_feature") return protocol::DefectClass::kDesignFeature;
+  if (s == "noise") return protocol::DefectClass::kNoise;
+  throw ReportError(where + ": unknown class '" + s + "'");
+}
+
+nlohmann::json vec(const Eigen::Vector3d& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
+
+nlohmann::json item(const detect::Finding& f) {
+  const auto& d = f.defect;
+  return {{"id", d.id},
+          {"class", class_name(d.defect_class)},
+          {"position", vec(d.position)},
+          {"normal", vec(d.normal)},
+          {"diameter", d.diameter},
+          {"height", d.height},
+          {"area", d.area},
+          {"score", d.score},
+          {"reason", f.reason}};
+}
+
+nlohmann::json load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ReportError(path + ": cannot open");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  try {
+    return nlohmann::json::parse(ss.str());
+  } catch (const nlohmann::json::parse_error& e) {
+    throw ReportError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
+  }
+}
+
+double number(const nlohmann::json& j, const char* key, const std::string& where) {
+  if (!j.is_object() || !j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>()))
+    throw ReportError(where + "." + key + ": missing or not a finite number");
+  return j[key].get<double>();
+}
+
+Eigen::Vector3d vec3(const nlohmann::json& j, const char* key, const std::string& where) {
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3)
+    throw ReportError(where + "." + key + ": expected [x, y, z]");
+  Eigen::Vector3d v;
+  for (int i = 0; i < 3; ++i) {
+    if (!j[key][static_cast<std::size_t>(i)].is_number())
+      throw ReportError(where + "." + key + ": expected numbers");
+    v[i] = j[key][static_cast<std::size_t>(i)].get<double>();
+  }
+  if (!v.allFinite()) throw ReportError(where + "." + key + ": not finite");
+  return v;
+}
+
+std::vector<LabelledDefect> items(const nlohmann::json& root, const char* key, const std::string& path) {
+  std::vector<LabelledDefect> out;
+  if (!root.contains(key)) return out;
+  if (!root[key].is_array()) throw ReportError(path + ": field " + key + ": expected an array");
+  for (std::size_t i = 0; i < root[key].size(); ++i) {
+    const auto& j = root[key][i];
+    const std::string where = path + ": field " + key + "[" + std::to_string(i) + "]";
+    if (!j.is_object()) throw ReportError(where + ": expected an object");
+    LabelledDefect d;
+    if (!j.contains("class") || !j["class"].is_string()) throw ReportError(where + ".class: missing");
+    d.defect_class = j["class"].get<std::string>();
+    d.defect.defect_class = class_from(d.defect_class, where + ".class");
+    d.defect.position = vec3(j, "position", where);
+    d.defect.normal = j.contains("normal") ? vec3(j, "normal", where) : Eigen::Vector3d::UnitZ();
+    d.defect.diameter = number(j, "diameter", where);
+    d.defect.height = number(j, "height", where);
+    if (j.contains("score")) d.defect.score = number(j, "score", where);
+    out.push_back(d);
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& source) {
+  nlohmann::json j;
+  j["schema"] = "dentmark.defects/1";
+  j["units"] = "m";
+  j["frame"] = "sls";
+  j["source"] = {{"file", source.file}, {"vertices", source.vertices}, {"triangles", source.triangles}};
+  const auto& s = det.stats;
+  j["scan"] = {{"surface_area", s.surface_area},
+               {"spacing", s.spacing},
+               {"finest_node_size", s.leaf_size},
+               {"octree_depth", s.depth},
+               {"leaves", s.leaves},
+               {"normal_noise_floor", s.noise_floor_sigma},
+               {"feature_leaves", s.feature_leaves},
+               {"feature_groups", s.feature_groups},
+               {"deviation_noise", s.deviation_noise}};
+  j["defects"] = nlohmann::json::array();
+  for (const auto& f : det.defects) j["defects"].push_back(item(f));
+  j["features"] = nlohmann::json::array();
+  for (const auto& f : det.features) j["features"].push_back(item(f));
+  nlohmann::json t = nlohmann::json::object();
+  for (const auto& [stage, sec] : det.timing) t[stage] = sec;
+  j["timing"] = t;
+  return j;
+}
+
+protocol::DefectList to_defect_list(const detect::Detection& det) {
+  protocol::DefectList list;
+  list.frame = "sls";
+  for (const auto& f : det.defects) list.defects.push_back(f.defect);
+  return list;
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) throw ReportError(path + ": cannot write: " + std::strerror(errno));
+  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  if (std::fclose(f) != 0 || !ok) {
+    std::remove(tmp.c_str());
+    throw ReportError(path + ": write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw ReportError(path + ": cannot rename: " + ec.message());
+  }
+}
+
+DefectsFile read_defects_json(const std::string& path) {
+  const nlohmann::json root = load(path);
+  if (!root.is_object() || root.value("schema", "") != "dentmark.defects/1")
+    throw ReportError(path + ": field schema: expected \"dentmark.defects/1\"");
+  DefectsFile f;
+  f.defects = items(root, "defects", path);
+  f.features = items(root, "features", path);
+  if (root.contains("scan") && root["scan"].is_object() && root["scan"].contains("surface_area"))
+    f.surface_area = number(root["scan"], "surface_area", path + ": field scan");
+  return f;
+}
+
+TruthFile read_truth_json(const std::string& path) {
+  const nlohmann::json root = load(path);
+  if (!root.is_object() || root.value("schema", "") != "dentmark.truth/1")
+    throw ReportError(path + ": field schema: expected \"dentmark.truth/1\"");
+  TruthFile t;
+  t.defects = items(root, "defects", path);
+  t.panel_area = number(root, "panel_area", path + ": field");
+  if (root.contains("features") && root["features"].is_array())
+    for (std::size_t i = 0; i < root["features"].size(); ++i) {
+      const auto& j = root["features"][i];
+      const std::string where = path + ": field features[" + std::to_string(i) + "]";
+      TruthFeature f;
+      f.name = j.value("name", "");
+      f.radius = number(j, "radius", where);
+      if (!j.contains("points") || !j["points"].is_array())
+        throw ReportError(where + ".points: expected an array");
+      for (const auto& p : j["points"]) {
+        if (!p.is_array() || p.size() != 3) throw ReportError(where + ".points: expected [x, y, z]");
+        f.points.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+      }
+      t.features.push_back(std::move(f));
+    }
+  return t;
+}
+
+nlohmann::json truth_to_json(const TruthFile& truth, const nlohmann::json& meta) {
+  nlohmann::json j;
+  j["schema"] = "dentmark.truth/1";
+  j["units"] = "m";
+  j["frame"] = "sls";
+  j["panel_area"] = truth.panel_area;
+  j["generator"] = meta;
+  j["defects"] = nlohmann::json::array();
+  int id = 1;
+  for (const auto& d : truth.defects)
+    j["defects"].push_back({{"id", id++},
+                            {"class", d.defect_class},
+                            {"position", vec(d.defect.position)},
+                            {"normal", vec(d.defect.normal)},
+                            {"diameter", d.defect.diameter},
+                            {"height", d.defect.height}});
+  j["features"] = nlohmann::json::array();
+  for (const auto& f : truth.features) {
+    nlohmann::json pts = nlohmann::json::array();
+    for (const auto& p : f.points) pts.push_back(vec(p));
+    j["features"].push_back({{"name", f.name}, {"radius", f.radius}, {"points", pts}});
+  }
+  return j;
+}
+
+}  // namespace dentmark::report

@@ -1,0 +1,59 @@
+#pragma once
+// A door-like panel as a height field z = f(x, y) in its own frame 'panel' (x along
+// the door, y up, z out towards the viewer; metres): double curvature, a character line
+// (crease), a handle 100 x 18 mm protruding 18 mm, a window opening, rounded borders,
+// and planted dents and bumps with a cos² profile.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace dentmark::sim::scan {
+
+struct PlantedDefect {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // panel x, y (m)
+  double diameter = 0.01;                            // full width of the cos² profile (m)
+  double height = -1e-4;                             // signed, negative = dent (m)
+};
+
+struct PanelShape {
+  double width = 1.0;   // m, along x
+  double height = 0.8;  // m, along y
+  bool handle = true;
+  bool crease = true;
+  bool window = true;
+  double edge_radius = 0.006;  // rounded border (m)
+};
+
+class DoorPanel {
+ public:
+  DoorPanel(PanelShape shape, std::vector<PlantedDefect> defects);
+
+  // Surface height at (x, y) including features and defects.
+  double z(double x, double y) const;
+  // Height without the planted defects (the "good" panel).
+  double z_nominal(double x, double y) const;
+  // Whether (x, y) is on the panel (not outside, not in the window opening).
+  bool inside(double x, double y) const;
+  // Distance from (x, y) to the nearest border or window edge (m).
+  double edge_distance(double x, double y) const;
+  // Distance to the nearest design feature (crease line, handle, borders, window).
+  double feature_distance(double x, double y) const;
+  // Unit normal of the nominal surface (panel frame).
+  Eigen::Vector3d normal(double x, double y) const;
+
+  const PanelShape& shape() const { return shape_; }
+  const std::vector<PlantedDefect>& defects() const { return defects_; }
+
+  // Feature geometry, for placing defects and for ground truth.
+  double crease_y(double x) const;
+  Eigen::Vector2d handle_centre() const { return {0.72 * shape_.width, 0.5 * shape_.height + 0.03}; }
+  static constexpr double kHandleLength = 0.100, kHandleWidth = 0.018, kHandleHeight = 0.018;
+
+ private:
+  double window_distance(double x, double y) const;  // > 0 outside the opening
+  PanelShape shape_;
+  std::vector<PlantedDefect> defects_;
+};
+
+}  // namespace dentmark::sim::scan

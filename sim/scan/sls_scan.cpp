@@ -1,0 +1,261 @@
+#include "dentmark/sim/scan/sls_scan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+namespace dentmark::sim::scan {
+namespace {
+
+std::uint64_t splitmix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+std::vector<PlantedDefect> place_defects(const ScanOptions& o, const DoorPanel& probe, std::mt19937_64& rng) {
+  std::vector<PlantedDefect> out = o.planted;
+  std::uniform_real_distribution<double> ux(0.0, o.shape.width), uy(0.0, o.shape.height), u01(0.0, 1.0);
+  for (int k = 0; k < o.defects; ++k) {
+    for (int attempt = 0; attempt < 2000; ++attempt) {
+      PlantedDefect d;
+      d.centre = {ux(rng), uy(rng)};
+      d.diameter = o.min_diameter + (o.max_diameter - o.min_diameter) * u01(rng);
+      const double mag = o.min_depth * std::pow(o.max_depth / o.min_depth, u01(rng));
+      d.height = u01(rng) < 0.5 ? -mag : mag;
+      if (probe.feature_distance(d.centre.x(), d.centre.y()) < 0.5 * d.diameter + 0.04) continue;
+      bool clear = true;
+      for (const auto& e : out)
+        if ((e.centre - d.centre).norm() < 0.5 * (e.diameter + d.diameter) + 0.03) clear = false;
+      if (!clear) continue;
+      out.push_back(d);
+      break;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+SynthScan synthesize_scan(const ScanOptions& o) {
+  if (!(o.spacing > 1e-5 && o.spacing < 0.05))
+    throw std::invalid_argument("spacing must be in (0.01 mm, 50 mm)");
+  if (!(o.noise >= 0.0 && o.noise < 0.01)) throw std::invalid_argument("noise must be in [0, 10 mm)");
+  if (o.defects < 0 || o.defects > 200) throw std::invalid_argument("defects must be in [0, 200]");
+  if (!(o.min_diameter > 0 && o.max_diameter >= o.min_diameter && o.min_depth > 0 &&
+        o.max_depth >= o.min_depth))
+    throw std::invalid_argument("defect size ranges must be positive and ordered");
+  if (!(o.outlier_fraction >= 0.0 && o.outlier_fraction <= 0.1))
+    throw std::invalid_argument("outlier fraction must be in [0, 0.1]");
+  const double W = o.shape.width, H = o.shape.height;
+  const double cells = W * H / (o.spacing * o.spacing);
+  if (cells > 6e7) throw std::invalid_argument("scan would exceed 60 M points; raise the spacing");
+
+  std::mt19937_64 rng(splitmix(o.seed));
+  const DoorPanel probe(o.shape, {});
+  const DoorPanel panel(o.shape, place_defects(o, probe, rng));
+
+  // Sensor pose: looking at the panel centre from 'standoff', tilted up to 12 degrees.
+  std::uniform_real_distribution<double> tilt(-12.0, 12.0);
+  const double yaw = tilt(rng) * std::numbers::pi / 180.0, pitch = tilt(rng) * std::numbers::pi / 180.0;
+  const Eigen::Vector3d centre(0.5 * W, 0.5 * H, panel.z_nominal(0.5 * W, 0.5 * H));
+  const Eigen::Vector3d back =
+      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix() *
+      Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d C = centre + o.standoff * back;
+  const Eigen::Vector3d zc = -back;
+  const Eigen::Vector3d xc = (Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(zc) * zc).normalized();
+  const Eigen::Vector3d yc = zc.cross(xc);
+  Eigen::Matrix3d R_panel_sls;
+  R_panel_sls << xc, yc, zc;
+  Eigen::Isometry3d T_panel_sls = Eigen::Isometry3d::Identity();
+  T_panel_sls.linear() = R_panel_sls;
+  T_panel_sls.translation() = C;
+  const Eigen::Isometry3d T_sls_panel = T_panel_sls.inverse();
+
+  // Image extent from the panel corners.
+  double u0 = 1e9, u1 = -1e9, v0 = 1e9, v1 = -1e9;
+  for (double cx : {0.0, W})
+    for (double cy : {0.0, H}) {
+      const Eigen::Vector3d p = T_sls_panel * Eigen::Vector3d(cx, cy, panel.z_nominal(cx, cy));
+      u0 = std::min(u0, p.x() / p.z()), u1 = std::max(u1, p.x() / p.z());
+      v0 = std::min(v0, p.y() / p.z()), v1 = std::max(v1, p.y() / p.z());
+    }
+  const double step = o.spacing / o.standoff;
+  const auto cols = static_cast<std::size_t>((u1 - u0) / step) + 2,
+             rows = static_cast<std::size_t>((v1 - v0) / step) + 2;
+
+  // Dropouts: discs of missing data.
+  std::vector<Eigen::Vector3d> drops;  // x, y, r
+  for (int k = 0; k < o.dropouts; ++k) {
+    std::uniform_real_distribution<double> ux(0.0, W), uy(0.0, H), ur(0.002, 0.006);
+    drops.emplace_back(ux(rng), uy(rng), ur(rng));
+  }
+
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  std::vector<Eigen::Vector3f> grid(rows * cols);
+  std::vector<std::uint8_t> valid(rows * cols, 0);
+  const std::uint64_t base_seed = splitmix(o.seed ^ 0xabcdef12345ull);
+#pragma omp parallel for schedule(dynamic, 16)
+  for (std::int64_t r = 0; r < static_cast<std::int64_t>(rows); ++r) {
+    std::mt19937_64 rr(splitmix(base_seed + static_cast<std::uint64_t>(r)));
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (std::size_t c = 0; c < cols; ++c) {
+      const Eigen::Vector3d dir_sls =
+          Eigen::Vector3d(u0 + static_cast<double>(c) * step, v0 + static_cast<double>(r) * step, 1.0)
+              .normalized();
+      const Eigen::Vector3d d = R_panel_sls * dir_sls;
+      auto g = [&](double t) {
+        const Eigen::Vector3d p = C + t * d;
+        return p.z() - panel.z(p.x(), p.y());
+      };
+      // Newton from the nominal plane; bracketing fallback on steep walls.
+      double t = (centre.z() - C.z()) / d.z();
+      bool ok = false;
+      for (int it = 0; it < 12; ++it) {
+        const double gt = g(t);
+        if (std::abs(gt) < 1e-10) {
+          ok = true;
+          break;
+        }
+        const double e = 1e-6, dg = (g(t + e) - g(t - e)) / (2 * e);
+        if (!(std::abs(dg) > 1e-6)) break;
+        t -= gt / dg;
+      }
+      if (!ok) {
+        double a = (centre.z() + 0.04 - C.z()) / d.z(), ga = g(a);
+        ok = false;
+        for (double b = a + 0.0005; b < a + 0.2; b += 0.0005) {
+          const double gb = g(b);
+          if ((ga > 0) != (gb > 0)) {
+            for (int it = 0; it < 40; ++it) {
+              const double m = 0.5 * (a + b), gm = g(m);
+              if ((gm > 0) == (ga > 0))
+                a = m, ga = gm;
+              else
+                b = m;
+            }
+            t = 0.5 * (a + b);
+            ok = true;
+            break;
+          }
+          a = b, ga = gb;
+        }
+      }
+      if (!ok) continue;
+      const Eigen::Vector3d p = C + t * d;
+      if (!panel.inside(p.x(), p.y())) continue;
+      bool dropped = false;
+      for (const auto& dr : drops)
+        if (std::hypot(p.x() - dr.x(), p.y() - dr.y()) < dr.z()) dropped = true;
+      if (dropped) continue;
+      double range = t + o.noise * gauss(rr);
+      if (o.outlier_fraction > 0 && u01(rr) < o.outlier_fraction)
+        range += (u01(rr) < 0.5 ? -1.0 : 1.0) * (0.002 + 0.018 * u01(rr));
+      grid[static_cast<std::size_t>(r) * cols + c] = (range * dir_sls).cast<float>();
+      valid[static_cast<std::size_t>(r) * cols + c] = 1;
+    }
+  }
+
+  SynthScan scan;
+  scan.T_sls_panel = T_sls_panel;
+  std::vector<std::uint32_t> index(rows * cols, kNone);
+  for (std::size_t k = 0; k < rows * cols; ++k)
+    if (valid[k]) {
+      index[k] = static_cast<std::uint32_t>(scan.vertices.size());
+      scan.vertices.push_back(grid[k]);
+    }
+  // Mesh on the sensor grid; no triangle across a depth jump.
+  const float max_edge = static_cast<float>(6.0 * o.spacing);
+  auto ok = [&](std::uint32_t a, std::uint32_t b) {
+    return (scan.vertices[a] - scan.vertices[b]).norm() <= max_edge;
+  };
+  for (std::size_t r = 0; r + 1 < rows; ++r)
+    for (std::size_t c = 0; c + 1 < cols; ++c) {
+      const std::uint32_t a = index[r * cols + c], b = index[r * cols + c + 1],
+                          cc = index[(r + 1) * cols + c], dd = index[(r + 1) * cols + c + 1];
+      if (a != kNone && b != kNone && dd != kNone && ok(a, b) && ok(b, dd) && ok(a, dd))
+        scan.triangles.push_back({a, dd, b});
+      if (a != kNone && cc != kNone && dd != kNone && ok(a, cc) && ok(cc, dd) && ok(a, dd))
+        scan.triangles.push_back({a, cc, dd});
+    }
+  for (const auto& t : scan.triangles)
+    scan.panel_area += 0.5 * static_cast<double>((scan.vertices[t[1]] - scan.vertices[t[0]])
+                                                     .cross(scan.vertices[t[2]] - scan.vertices[t[0]])
+                                                     .norm());
+  if (o.shuffle) {
+    std::vector<std::uint32_t> perm(scan.vertices.size());
+    std::iota(perm.begin(), perm.end(), 0u);
+    std::shuffle(perm.begin(), perm.end(), rng);
+    std::vector<Eigen::Vector3f> v(scan.vertices.size());
+    for (std::size_t i = 0; i < perm.size(); ++i) v[perm[i]] = scan.vertices[i];
+    scan.vertices.swap(v);
+    for (auto& t : scan.triangles)
+      for (auto& i : t) i = perm[i];
+    std::shuffle(scan.triangles.begin(), scan.triangles.end(), rng);
+  }
+
+  // Ground truth in 'sls'.
+  for (const PlantedDefect& d : panel.defects()) {
+    TruthDefect t;
+    t.defect_class = d.height < 0 ? "dent" : "bump";
+    t.position =
+        T_sls_panel * Eigen::Vector3d(d.centre.x(), d.centre.y(), panel.z(d.centre.x(), d.centre.y()));
+    t.normal = T_sls_panel.linear() * panel.normal(d.centre.x(), d.centre.y());
+    t.diameter = d.diameter;
+    t.height = d.height;
+    scan.defects.push_back(t);
+  }
+  auto feature_line = [&](const std::string& name, double radius, auto&& at, double len) {
+    TruthFeature f;
+    f.name = name;
+    f.radius = radius;
+    for (double s = 0.0; s <= len; s += 0.01) {
+      const Eigen::Vector2d q = at(s);
+      if (q.x() < 0 || q.x() > W || q.y() < 0 || q.y() > H) continue;
+      f.points.push_back(T_sls_panel * Eigen::Vector3d(q.x(), q.y(), panel.z_nominal(q.x(), q.y())));
+    }
+    scan.features.push_back(std::move(f));
+  };
+  if (o.shape.handle) {
+    const Eigen::Vector2d hc = panel.handle_centre();
+    feature_line(
+        "handle", 0.03, [&](double s) { return Eigen::Vector2d(hc.x() - 0.05 + s, hc.y()); }, 0.1);
+  }
+  if (o.shape.crease)
+    feature_line(
+        "crease", 0.02, [&](double s) { return Eigen::Vector2d(s, panel.crease_y(s)); }, W);
+  feature_line(
+      "border", 0.02,
+      [&](double s) {
+        const double per = 2 * (W + H);
+        s = std::fmod(s, per);
+        if (s < W) return Eigen::Vector2d(s, 0.0);
+        if (s < W + H) return Eigen::Vector2d(W, s - W);
+        if (s < 2 * W + H) return Eigen::Vector2d(2 * W + H - s, H);
+        return Eigen::Vector2d(0.0, per - s);
+      },
+      2 * (W + H));
+  if (o.shape.window) {
+    const double x0 = 0.1 * W, x1 = 0.9 * W, y0 = 0.68 * H, y1 = 0.93 * H, w = x1 - x0, h = y1 - y0;
+    feature_line(
+        "window", 0.02,
+        [&](double s) {
+          if (s < w) return Eigen::Vector2d(x0 + s, y0);
+          if (s < w + h) return Eigen::Vector2d(x1, y0 + s - w);
+          if (s < 2 * w + h) return Eigen::Vector2d(x1 - (s - w - h), y1);
+          return Eigen::Vector2d(x0, y1 - (s - 2 * w - h));
+        },
+        2 * (w + h));
+  }
+  return scan;
+}
+
+}  // namespace dentmark::sim::scan
