@@ -32,27 +32,37 @@ std::optional<cv::Point2f> refine_seed(const cv::Mat& grey, const cv::Point2f& s
   if (roi.area() < 25) return std::nullopt;
   cv::Mat eig;
   cv::cornerMinEigenVal(grey(roi), eig, 5, 3);
-  // Shi-Tomasi score, weighted towards the seed (seeds are a few pixels off, and a
-  // neighbouring corner may be in the window too).
-  const double sigma = 0.6 * r;
-  double best = 0.0;
-  cv::Point best_p(-1, -1);
+  // Shi-Tomasi corners are the local maxima of the minimum eigenvalue that stand well
+  // above the window's typical (edge or flat) response; the one nearest the seed wins,
+  // since a neighbouring, stronger corner may be in the window too (an obtuse corner
+  // responds far less than a right-angled one).
   std::vector<float> values;
+  double peak_max = 0.0;
   for (int y = 0; y < roi.height; ++y)
     for (int x = 0; x < roi.width; ++x) {
-      const double dx = roi.x + x - seed.x, dy = roi.y + y - seed.y;
-      if (dx * dx + dy * dy > r * r) continue;
       const float e = eig.at<float>(y, x);
       values.push_back(e);
-      const double s = e * std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma));
-      if (s > best) best = s, best_p = {roi.x + x, roi.y + y};
+      peak_max = std::max(peak_max, static_cast<double>(e));
     }
-  if (best_p.x < 0 || values.empty()) return std::nullopt;
-  // A distinct corner stands well above the window's typical (edge or flat) response.
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  const double median = values[values.size() / 2];
-  const double peak = eig.at<float>(best_p.y - roi.y, best_p.x - roi.x);
-  if (!(peak > 1e-4) || peak < 8.0 * median) return std::nullopt;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
+                   values.end());
+  const double floor = std::max({8.0 * values[values.size() / 2], 0.03 * peak_max, 1e-4});
+  double best_d2 = 1e300;
+  cv::Point best_p(-1, -1);
+  for (int y = 1; y + 1 < roi.height; ++y)
+    for (int x = 1; x + 1 < roi.width; ++x) {
+      const float e = eig.at<float>(y, x);
+      if (e < floor) continue;
+      const double dx = roi.x + x - seed.x, dy = roi.y + y - seed.y;
+      const double d2 = dx * dx + dy * dy;
+      if (d2 > r * r || d2 >= best_d2) continue;
+      bool is_max = true;
+      for (int v = -1; v <= 1 && is_max; ++v)
+        for (int u = -1; u <= 1; ++u)
+          if ((u || v) && eig.at<float>(y + v, x + u) > e) is_max = false;
+      if (is_max) best_d2 = d2, best_p = {roi.x + x, roi.y + y};
+    }
+  if (best_p.x < 0) return std::nullopt;
   return subpixel_corner(grey, cv::Point2f(static_cast<float>(best_p.x), static_cast<float>(best_p.y)),
                          o.subpix_half_window, r + 2.0);
 }

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
-#include "dentmark/firmware/track/corner_refine.h"
+#include "dentmark/firmware/track/template_align.h"
 
 namespace dentmark::track {
 
@@ -15,7 +15,9 @@ std::optional<StereoMatch> match_right_to_left(const StereoCalibration& calib, c
   const cv::Mat& imr = right.image();
   const cv::Mat& iml = left.image();
   const int h = o.template_half;
-  const cv::Mat templ = patch_at(imr, p_right, h);
+  const GridTemplate grid = grid_template(imr, p_right, h);
+  if (grid.patch.empty()) return std::nullopt;
+  const cv::Mat& templ = grid.patch;
   // The camR ray of the corner, sampled in inverse depth and seen by camL: the epipolar
   // curve (curved when the lenses distort).
   const cv::Point2d n = calib.normalize(Cam::kRight, {p_right})[0];
@@ -59,11 +61,16 @@ std::optional<StereoMatch> match_right_to_left(const StereoCalibration& calib, c
   if (best_p.x < 0 || best < o.min_ncc) return std::nullopt;
 
   // Pyramidal LK camR → camL from the correlation peak, then the corner in camL.
-  cv::Point2f p(static_cast<float>(best_p.x), static_cast<float>(best_p.y));
+  // (The correlation peak is the template's centre pixel; the corner is offset from it.)
+  cv::Point2f p = cv::Point2f(static_cast<float>(best_p.x), static_cast<float>(best_p.y)) + grid.offset;
   if (auto q = track_lk(right, left, p_right, p, lk); q && cv::norm(*q - p) < 3.0) p = *q;
-  const auto refined = subpixel_corner(iml, p, o.subpix_half_window, 3.0);
-  if (!refined) return std::nullopt;
-  return StereoMatch{*refined, best};
+  // The right image's patch aligned into the left one (gain and offset free): both
+  // cameras then hold the same physical point, whatever a corner detector's bias.
+  AlignOptions ao;
+  ao.max_shift = 3.0;
+  const auto refined = align_template(iml, templ, p - grid.offset, ao);
+  if (!refined || refined->ncc < o.min_ncc) return std::nullopt;
+  return StereoMatch{refined->position + grid.offset, refined->ncc};
 }
 
 }  // namespace dentmark::track

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "dentmark/firmware/track/pose_refine.h"
+#include "dentmark/firmware/track/template_align.h"
 #include "dentmark/firmware/track/track_error.h"
 
 namespace dentmark::track {
@@ -23,8 +25,9 @@ void check_size(const cv::Mat& img, const cv::Size& size, const char* which) {
 }
 
 // Searches the template near `around` and refines the corner there.
-std::optional<cv::Point2f> find_near(const cv::Mat& grey, const cv::Mat& templ, const cv::Point2f& around,
-                                     int radius, double min_ncc, int subpix_half) {
+std::optional<cv::Point2f> find_near(const cv::Mat& grey, const GridTemplate& grid, const cv::Point2f& around,
+                                     int radius, double min_ncc) {
+  const cv::Mat& templ = grid.patch;
   const int h = templ.cols / 2;
   const cv::Rect area = cv::Rect(cvRound(around.x) - radius - h, cvRound(around.y) - radius - h,
                                  2 * (radius + h) + 1, 2 * (radius + h) + 1);
@@ -37,12 +40,23 @@ std::optional<cv::Point2f> find_near(const cv::Mat& grey, const cv::Mat& templ, 
   cv::minMaxLoc(score, nullptr, &best, nullptr, &loc);
   if (!(best >= min_ncc)) return std::nullopt;
   const cv::Point2f start(static_cast<float>(area.x + loc.x + h), static_cast<float>(area.y + loc.y + h));
-  const auto c = subpixel_corner(grey, start, subpix_half, 2.0);
-  if (!c || cv::norm(*c - around) > radius + 1.0) return std::nullopt;
-  return c;
+  const auto c = align_template(grey, templ, start);
+  if (!c || c->ncc < min_ncc || cv::norm(c->position + grid.offset - around) > radius + 1.0)
+    return std::nullopt;
+  return c->position + grid.offset;
 }
 
 }  // namespace
+
+double Tracker::expected_depth_error(double depth) const {
+  const double f = 0.5 * (calib_.left.K(0, 0) + calib_.right.K(0, 0));
+  const double baseline = calib_.T_camR_camL.translation().norm();
+  return depth * depth / (f * baseline) * opt_.disparity_noise;
+}
+
+double Tracker::disagreement_limit() const {
+  return std::max(opt_.max_disagreement, 8.0 * expected_depth_error(reference_depth_));
+}
 
 Tracker::Tracker(StereoCalibration calibration, TrackerOptions options)
     : calib_(std::move(calibration)), opt_(options), filter_(Eigen::Vector3d::Zero(), options.filter) {}
@@ -92,16 +106,21 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   for (const auto& c : found) {
     ReferenceFeature f;
     f.p_camL = c.p;
-    f.template_left = patch_at(left, c.l, opt_.template_half);
-    f.template_right = patch_at(right, c.r, opt_.template_half);
+    f.template_left = grid_template(left, c.l, opt_.template_half);
+    f.template_right = grid_template(right, c.r, opt_.template_half);
+    if (f.template_left.patch.empty() || f.template_right.patch.empty()) continue;
     reference_.add(f);
     seed_of_feature_.push_back(c.seed);
     left_.push_back(c.l);
     right_.push_back(c.r);
   }
-  active_.assign(found.size(), true);
+  if (static_cast<int>(reference_.size()) < opt_.min_features)
+    throw TrackError("only " + std::to_string(reference_.size()) +
+                     " features lie far enough inside the images");
+  active_.assign(reference_.size(), true);
   filter_ = MotionFilter(reference_.centroid(), opt_.filter);
   filter_.reset(t);
+  reference_depth_ = reference_.centroid().z();
   prev_left_ = pl;
   prev_right_ = pr;
   t_prev_ = t;
@@ -112,7 +131,7 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   r.index = index;
   r.t = t;
   r.ok = true;
-  r.features = static_cast<int>(found.size());
+  r.features = static_cast<int>(reference_.size());
   r.quality =
       static_cast<double>(found.size()) / static_cast<double>(std::max<std::size_t>(seeds_right.size(), 1));
   return r;
@@ -122,11 +141,11 @@ bool Tracker::reacquire(std::size_t i, const Transform& motion, const ImagePyram
                         const ImagePyramid& right, Eigen::Vector3d& p) {
   const Eigen::Vector3d x = motion * reference_[i].p_camL;
   const cv::Point2f gl = calib_.project(Cam::kLeft, {x})[0], gr = calib_.project(Cam::kRight, {x})[0];
-  const auto l = find_near(left.image(), reference_[i].template_left, gl, opt_.reacquire_radius,
-                           opt_.reacquire_ncc, opt_.corner.subpix_half_window);
+  const auto l =
+      find_near(left.image(), reference_[i].template_left, gl, opt_.reacquire_radius, opt_.reacquire_ncc);
   if (!l) return false;
-  const auto r = find_near(right.image(), reference_[i].template_right, gr, opt_.reacquire_radius,
-                           opt_.reacquire_ncc, opt_.corner.subpix_half_window);
+  const auto r =
+      find_near(right.image(), reference_[i].template_right, gr, opt_.reacquire_radius, opt_.reacquire_ncc);
   if (!r) return false;
   const Triangulation tri =
       triangulate(calib_, calib_.normalize(Cam::kLeft, {*l})[0], calib_.normalize(Cam::kRight, {*r})[0]);
@@ -167,14 +186,17 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   std::vector<Eigen::Vector3d> current(n, Eigen::Vector3d::Zero());
   std::vector<bool> valid(n, false);
   auto follow = [&](const ImagePyramid& prev, const ImagePyramid& cur, const cv::Point2f& from,
-                    const cv::Point2f& guess, const cv::Mat& templ) -> std::optional<cv::Point2f> {
+                    const cv::Point2f& guess, const GridTemplate& templ) -> std::optional<cv::Point2f> {
     const auto fwd = track_lk(prev, cur, from, guess, opt_.lk);
     if (!fwd) return std::nullopt;
     const auto back = track_lk(cur, prev, *fwd, from, opt_.lk);
     if (!back || cv::norm(*back - from) > opt_.max_fb_error) return std::nullopt;
-    const auto c = subpixel_corner(cur.image(), *fwd, opt_.corner.subpix_half_window, opt_.max_subpix_shift);
-    if (!c || patch_ncc(cur.image(), *c, templ) < opt_.min_appearance_ncc) return std::nullopt;
-    return c;
+    // Refine against the first frame's template: drift-free and lighting-proof.
+    AlignOptions ao;
+    ao.max_shift = opt_.max_subpix_shift;
+    const auto c = align_template(cur.image(), templ.patch, *fwd - templ.offset, ao);
+    if (!c || c->ncc < opt_.min_appearance_ncc) return std::nullopt;
+    return c->position + templ.offset;
   };
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
@@ -192,7 +214,7 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   // Geometric check against the reference layout (rigid: distances are kept).
   const std::vector<double> dis = reference_.distance_disagreement(current, valid);
   for (std::size_t i = 0; i < n; ++i)
-    if (valid[i] && dis[i] > opt_.max_disagreement) valid[i] = false;
+    if (valid[i] && dis[i] > disagreement_limit()) valid[i] = false;
 
   FrameResult result = fit_and_filter(index, t, current, valid);
   if (!result.ok) {
@@ -259,14 +281,29 @@ FrameResult Tracker::fit_and_filter(long index, double t, std::vector<Eigen::Vec
     ids.push_back(i);
   }
   try {
-    const RobustMotion fit = fit_rigid_robust(from, to, w, opt_.robust);
+    // The residual scale never assumed below what triangulation can give here: depth
+    // error Z² / (f B) per pixel of disparity error.
+    RobustMotionOptions ro = opt_.robust;
+    ro.noise_floor = std::max(ro.noise_floor, expected_depth_error(zmed));
+    const RobustMotion fit = fit_rigid_robust(from, to, w, ro);
     if (fit.inliers < opt_.min_features) throw GeometryError("too few inliers");
     for (std::size_t k = 0; k < ids.size(); ++k)
       if (!fit.inlier[k]) valid[ids[k]] = false;
     r.ok = true;
     r.features = fit.inliers;
-    r.raw_motion = fit.T_to_from;
-    r.motion = fit.T_to_from;
+    // Polish on the image residuals of the inliers (pose_refine.h).
+    std::vector<Eigen::Vector3d> ref_in;
+    std::vector<cv::Point2f> pl, pr;
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      if (fit.inlier[k]) {
+        ref_in.push_back(reference_[ids[k]].p_camL);
+        pl.push_back(left_[ids[k]]);
+        pr.push_back(right_[ids[k]]);
+      }
+    const PoseRefineResult refined = refine_pose(
+        calib_, fit.T_to_from, ref_in, calib_.normalize(Cam::kLeft, pl), calib_.normalize(Cam::kRight, pr));
+    r.raw_motion = refined.motion;
+    r.motion = refined.motion;
     r.rms = fit.rms;
     const double share = static_cast<double>(fit.inliers) / static_cast<double>(reference_.size());
     r.quality = share / (1.0 + std::pow(fit.rms / 1e-3, 2));

@@ -9,11 +9,13 @@
 #include <span>
 #include <vector>
 
+#include "dentmark/firmware/track/template_align.h"
+
 namespace dentmark::track {
 
 struct ReferenceFeature {
   Eigen::Vector3d p_camL = Eigen::Vector3d::Zero();  // at the first frame, m
-  cv::Mat template_left, template_right;             // CV_32F patches at the first frame
+  GridTemplate template_left, template_right;        // patches at the first frame
 };
 
 class ReferenceBuffer {

@@ -1,7 +1,8 @@
 #pragma once
 // Step A, camR → camL (paper §IV-A): the right-image corner is found in the left image
 // by normalised cross-correlation along its epipolar curve (distortion-aware, over a
-// depth range), then pyramidal LK camR → camL and sub-pixel refinement in camL.
+// depth range), then pyramidal LK camR → camL and sub-pixel refinement in camL by
+// aligning the camR patch (template_align.h).
 
 #include <opencv2/core.hpp>
 #include <optional>
@@ -16,7 +17,6 @@ struct StereoMatchOptions {
   double max_depth = 30.0;  // m
   int template_half = 10;   // px
   double min_ncc = 0.6;
-  int subpix_half_window = 5;
 };
 
 struct StereoMatch {

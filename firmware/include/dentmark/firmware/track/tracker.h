@@ -34,11 +34,12 @@ struct TrackerOptions {
   int template_half = 7;          // appearance / re-acquisition template, px
   double max_fb_error = 0.5;      // forward–backward LK disagreement, px
   double max_subpix_shift = 2.0;  // cornerSubPix may move an LK point this far, px
-  double min_appearance_ncc = 0.6;
+  double min_appearance_ncc = 0.75;
   double reacquire_ncc = 0.8;
   int reacquire_radius = 6;         // px around the prediction
   double max_reprojection = 1.0;    // px, triangulation
   double max_disagreement = 0.004;  // m, pairwise distances vs the reference
+  double disparity_noise = 0.05;    // px: expected matching noise; scales the depth tolerances
   int min_features = 3;
 };
 
@@ -81,6 +82,9 @@ class Tracker {
   bool reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left, const ImagePyramid& right,
                  Eigen::Vector3d& p_camL);
 
+  double expected_depth_error(double depth) const;
+  double disagreement_limit() const;
+
   StereoCalibration calib_;
   TrackerOptions opt_;
   ReferenceBuffer reference_;
@@ -91,6 +95,7 @@ class Tracker {
   std::vector<bool> active_;
   double t_prev_ = 0.0;
   double rms_ema_ = 0.0;
+  double reference_depth_ = 1.0;
   bool started_ = false;
 };
 
