@@ -13,5 +13,7 @@ int& exit_code();
 void register_run(CLI::App& app);
 // `dentmark-edge track ...` and `dentmark-edge teach ...`: offline tracker tools.
 void register_track(CLI::App& app);
+// `dentmark-edge simulate ...`: the station's twin end to end (Table I scenarios).
+void register_simulate(CLI::App& app);
 
 }  // namespace dentmark::edge

@@ -201,7 +201,16 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
   try {
     robot_.connect();
     robot_.heartbeat();
-    tip_ = robot_.status().T_base_tool.translation();
+    hal::RobotStatus s = robot_.status();
+    if (s.state == robot_link::State::kStopped || s.state == robot_link::State::kFault) {
+      // A stop latched while idle (heartbeat pause between jobs): starting a job is the
+      // operator's go-ahead, given only while the e-stop is released.
+      check_interlocks();
+      log::info("robot " + std::string(robot_link::to_string(s.state)) + " (" +
+                robot_link::fault_names(s.faults) + "): resetting for the new job");
+      s = robot_.wait_done(robot_.reset(), 2.0, config_.poll_period, clock_);
+    }
+    tip_ = s.T_base_tool.translation();
     while (!remaining.empty()) {
       check_interlocks();
       if (!tracking_ok()) {
@@ -228,9 +237,9 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
       const Target target = *it;
       try {
         report.marks.push_back(mark_one(target, since_scan));
-      } catch (const SkipDefect& s) {
-        log::warn("defect " + std::to_string(target.id) + " skipped: " + s.why);
-        report.marks.push_back(unmarked(target.id, MarkOutcome::kSkipped, s.reason));
+      } catch (const SkipDefect& skip) {
+        log::warn("defect " + std::to_string(target.id) + " skipped: " + skip.why);
+        report.marks.push_back(unmarked(target.id, MarkOutcome::kSkipped, skip.reason));
       }
       remaining.erase(std::find_if(remaining.begin(), remaining.end(),
                                    [&](const Target& t) { return t.id == target.id; }));

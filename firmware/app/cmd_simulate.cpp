@@ -1,0 +1,294 @@
+// `dentmark-edge simulate`: the marking station's twin, end to end (design.md §7):
+// the paper's Table I scenarios — positions A, B, C × yaw 0°, 10°, −15° — each with the
+// rendered cameras, the tracker, the planner and the robot simulator over Modbus.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "dentmark/common/log.h"
+#include "dentmark/common/protocol/dml_file.h"
+#include "dentmark/firmware/simulation/station_sim.h"
+#include "dentmark/sim/scan/sls_scan.h"
+
+namespace dentmark::edge {
+namespace {
+
+using simulation::ScanTruth;
+
+struct SimulateOptions {
+  std::string defects_file;  // .dml from `dentmark detect` (default: the truth itself)
+  std::string truth_file;    // truth.json from `dentmark synth scan`
+  std::vector<std::string> scenarios{"all"};
+  double rate = 4.0;
+  int width = 1280, height = 1024;
+  double focal = 1740.0;
+  double fps = 10.0;
+  std::uint64_t seed = 1;
+  std::string json_out;
+  bool no_arm = false;
+  bool truth_motion = false;
+};
+
+Eigen::Vector3d vec3(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_array() || j.size() != 3) throw std::runtime_error(where + ": expected [x, y, z]");
+  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
+
+// Reads the scan truth (schema dentmark.truth/1). Without the scan's panel pose the
+// door frame is placed at the defects' centroid, facing their mean normal.
+ScanTruth read_truth(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw std::runtime_error(path + ": byte " + std::to_string(e.byte) + ": not JSON");
+  }
+  ScanTruth t;
+  if (!j.contains("defects") || !j["defects"].is_array())
+    throw std::runtime_error(path + ": no 'defects' array");
+  for (std::size_t i = 0; i < j["defects"].size(); ++i) {
+    const auto& d = j["defects"][i];
+    const std::string where = path + ": defects[" + std::to_string(i) + "]";
+    simulation::TruthDefect td;
+    td.defect_class = d.value("class", "");
+    td.position = vec3(d.at("position"), where + ".position");
+    td.normal = vec3(d.at("normal"), where + ".normal").normalized();
+    td.diameter = d.value("diameter", 0.0);
+    td.height = d.value("height", 0.0);
+    t.defects.push_back(td);
+  }
+  const auto& gen = j.contains("generator") ? j["generator"] : nlohmann::json::object();
+  if (gen.contains("T_sls_panel") && gen.contains("panel_size")) {
+    Eigen::Matrix4d m;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m(r, c) = gen["T_sls_panel"][r][c].get<double>();
+    t.T_sls_panel.matrix() = m;
+    t.panel_width = gen["panel_size"][0].get<double>();
+    t.panel_height = gen["panel_size"][1].get<double>();
+  } else if (!t.defects.empty()) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
+    for (const auto& d : t.defects) c += d.position, n += d.normal;
+    c /= static_cast<double>(t.defects.size());
+    const Eigen::Vector3d z = n.normalized();
+    const Eigen::Vector3d x = (Eigen::Vector3d::UnitX() - z.x() * z).normalized();
+    Eigen::Matrix3d r;
+    r << x, z.cross(x), z;
+    t.T_sls_panel = Transform::Identity();
+    t.T_sls_panel.linear() = r;
+    t.T_sls_panel.translation() = c;
+    t.panel_width = t.panel_height = 0.0;
+  }
+  return t;
+}
+
+// Built-in default: a door with planted defects, perfectly detected.
+void builtin(ScanTruth& truth, protocol::DefectList& list, std::uint64_t seed) {
+  sim::scan::ScanOptions o;
+  o.seed = seed;
+  o.spacing = 0.004;  // only the truth is needed
+  o.defects = 6;
+  o.min_diameter = 0.01;
+  const sim::scan::SynthScan scan = sim::scan::synthesize_scan(o);
+  truth.T_sls_panel = scan.T_sls_panel;
+  truth.panel_width = o.shape.width;
+  truth.panel_height = o.shape.height;
+  list.job_id = seed;
+  list.panel_id = "builtin-door";
+  std::uint32_t id = 1;
+  for (const auto& d : scan.defects) {
+    truth.defects.push_back({d.defect_class, d.position, d.normal, d.diameter, d.height});
+    protocol::Defect p;
+    p.id = id++;
+    p.defect_class = d.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
+    p.position = d.position;
+    p.normal = d.normal;
+    p.diameter = d.diameter;
+    p.height = d.height;
+    p.score = 1.0;
+    list.defects.push_back(p);
+  }
+}
+
+struct Scenario {
+  char position;
+  double yaw_deg;
+};
+
+std::vector<Scenario> parse_scenarios(const std::vector<std::string>& names) {
+  std::vector<Scenario> all;
+  for (char p : {'A', 'B', 'C'})
+    for (double y : {0.0, 10.0, -15.0}) all.push_back({p, y});
+  if (names.size() == 1 && names[0] == "all") return all;
+  std::vector<Scenario> out;
+  for (const auto& n : names) {
+    // "B10", "C-15", "A0"
+    if (n.size() < 2 || (n[0] != 'A' && n[0] != 'B' && n[0] != 'C'))
+      throw std::runtime_error("scenario '" + n + "': expected A|B|C followed by a yaw in degrees, e.g. B10");
+    std::size_t used = 0;
+    double yaw = 0.0;
+    try {
+      yaw = std::stod(n.substr(1), &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != n.size() - 1 || std::abs(yaw) > 30.0)
+      throw std::runtime_error("scenario '" + n + "': yaw must be a number of degrees within ±30");
+    out.push_back({n[0], yaw});
+  }
+  return out;
+}
+
+void print_table(const std::vector<simulation::ScenarioResult>& results) {
+  std::printf("\nMarking error per axis in the robot base, mm (paper Table I: 7-16 mm)\n");
+  std::printf("%-14s", "scenario");
+  for (const auto& r : results)
+    std::printf(" %c%+4.0f°", r.options.position, r.options.yaw * 180 / std::numbers::pi);
+  std::printf("\n");
+  const char* names[3] = {"|e_x| mean", "|e_y| mean", "|e_z| mean"};
+  for (int a = 0; a < 3; ++a) {
+    std::printf("%-14s", names[a]);
+    for (const auto& r : results) std::printf(" %6.2f", r.mean_abs(a) * 1e3);
+    std::printf("\n");
+  }
+  std::printf("%-14s", "worst |e|");
+  for (const auto& r : results) std::printf(" %6.2f", r.max_abs.maxCoeff() * 1e3);
+  std::printf("\n%-14s", "marked/sent");
+  for (const auto& r : results) std::printf(" %3d/%-2d", r.marked, r.defects_sent);
+  std::printf("\n");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double worst = 0.0;
+  int n = 0;
+  for (const auto& r : results)
+    for (const auto& e : r.errors)
+      mean += e.error_base.cwiseAbs(), worst = std::max(worst, e.error_base.cwiseAbs().maxCoeff()), ++n;
+  if (n > 0) mean /= n;
+  std::printf("\nover %d marks: mean |e_x| %.2f, |e_y| %.2f, |e_z| %.2f mm; worst axis error %.2f mm\n", n,
+              mean.x() * 1e3, mean.y() * 1e3, mean.z() * 1e3, worst * 1e3);
+}
+
+nlohmann::json to_json(const simulation::ScenarioResult& r) {
+  nlohmann::json marks = nlohmann::json::array();
+  for (const auto& e : r.errors)
+    marks.push_back({{"defect_id", e.defect_id},
+                     {"truth_index", e.truth_index},
+                     {"t_spray", e.t_spray},
+                     {"error_base", {e.error_base.x(), e.error_base.y(), e.error_base.z()}}});
+  return {{"position", std::string(1, r.options.position)},
+          {"yaw", r.options.yaw},
+          {"defects_sent", r.defects_sent},
+          {"marked", r.marked},
+          {"unmatched_marks", r.unmatched_marks},
+          {"mean_abs_error", {r.mean_abs.x(), r.mean_abs.y(), r.mean_abs.z()}},
+          {"max_abs_error", {r.max_abs.x(), r.max_abs.y(), r.max_abs.z()}},
+          {"frames_tracked", r.frames_tracked},
+          {"frames_failed", r.frames_failed},
+          {"sim_seconds", r.sim_seconds},
+          {"real_seconds", r.real_seconds},
+          {"marks", marks}};
+}
+
+int run_simulate(const SimulateOptions& opt) {
+  ScanTruth truth;
+  protocol::DefectList list;
+  std::vector<Scenario> scenarios;
+  try {
+    scenarios = parse_scenarios(opt.scenarios);
+    if (opt.truth_file.empty() != opt.defects_file.empty())
+      throw std::runtime_error("--defects and --truth go together (neither: built-in door)");
+    if (opt.truth_file.empty()) {
+      builtin(truth, list, opt.seed);
+    } else {
+      truth = read_truth(opt.truth_file);
+      list = protocol::read_dml(opt.defects_file);
+    }
+  } catch (const std::exception& e) {
+    log::error(e.what());
+    return 2;
+  }
+  log::info("simulating " + std::to_string(scenarios.size()) + " scenario(s), " +
+            std::to_string(list.defects.size()) + " defects sent, " + std::to_string(truth.defects.size()) +
+            " true defects, clock ×" + std::to_string(opt.rate));
+  std::vector<simulation::ScenarioResult> results;
+  for (const Scenario& s : scenarios) {
+    simulation::ScenarioOptions so;
+    so.position = s.position;
+    so.yaw = s.yaw_deg * std::numbers::pi / 180.0;
+    so.width = opt.width;
+    so.height = opt.height;
+    so.focal_px = opt.focal;
+    so.fps = opt.fps;
+    so.seed = opt.seed;
+    simulation::SimulationOptions sim;
+    sim.clock_rate = opt.rate;
+    sim.arm_occludes = !opt.no_arm;
+    sim.truth_motion = opt.truth_motion;
+    try {
+      results.push_back(simulation::run_scenario(so, sim, list, truth));
+    } catch (const std::exception& e) {
+      log::error(std::string("scenario ") + s.position + std::to_string(s.yaw_deg) + ": " + e.what());
+      return 1;
+    }
+    const auto& r = results.back();
+    log::info(std::string("scenario ") + s.position + " " + std::to_string(s.yaw_deg) + "°: marked " +
+              std::to_string(r.marked) + "/" + std::to_string(r.defects_sent) + ", frames tracked " +
+              std::to_string(r.frames_tracked) + " (failed " + std::to_string(r.frames_failed) + "), " +
+              std::to_string(r.real_seconds) + " s real for " + std::to_string(r.sim_seconds) +
+              " s simulated");
+  }
+  print_table(results);
+  if (!opt.json_out.empty()) {
+    nlohmann::json j = {{"schema", "dentmark.station-sim/1"}, {"scenarios", nlohmann::json::array()}};
+    for (const auto& r : results) j["scenarios"].push_back(to_json(r));
+    const std::string tmp = opt.json_out + ".tmp";
+    std::ofstream out(tmp);
+    out << j.dump(1) << "\n";
+    if (!out || (out.close(), std::rename(tmp.c_str(), opt.json_out.c_str()) != 0)) {
+      log::error(opt.json_out + ": cannot write");
+      return 1;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+void register_simulate(CLI::App& app) {
+  auto opt = std::make_shared<SimulateOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "simulate", "Run the simulated marking station (paper Table I scenarios) and print the marking errors");
+  cmd->add_option("--defects", opt->defects_file, "Defect list (.dml) from `dentmark detect`");
+  cmd->add_option("--truth", opt->truth_file, "Scan truth (.json) from `dentmark synth scan`");
+  cmd->add_option("--scenario", opt->scenarios, "all, or scenarios like A0 B10 C-15")->capture_default_str();
+  cmd->add_option("--rate", opt->rate, "Simulated seconds per real second")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 50.0));
+  cmd->add_option("--width", opt->width, "Camera width, px")
+      ->capture_default_str()
+      ->check(CLI::Range(160, 4096));
+  cmd->add_option("--height", opt->height, "Camera height, px")
+      ->capture_default_str()
+      ->check(CLI::Range(120, 4096));
+  cmd->add_option("--focal", opt->focal, "Focal length, px")
+      ->capture_default_str()
+      ->check(CLI::Range(100.0, 20000.0));
+  cmd->add_option("--fps", opt->fps, "Camera frame rate, Hz")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 120.0));
+  cmd->add_option("--seed", opt->seed, "Seed (calibration errors, noise, built-in door)")
+      ->capture_default_str();
+  cmd->add_flag("--no-arm", opt->no_arm, "Do not render the robot arm in the cameras' view");
+  cmd->add_flag("--truth-motion", opt->truth_motion,
+                "Use the true panel motion instead of the tracker (diagnostics)");
+  cmd->add_option("--json", opt->json_out, "Write per-mark results as JSON");
+  cmd->callback([opt] { exit_code() = run_simulate(*opt); });
+}
+
+}  // namespace dentmark::edge

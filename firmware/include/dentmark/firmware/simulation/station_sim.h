@@ -1,0 +1,65 @@
+#pragma once
+// One marking scenario of the simulated station, end to end and faster than real time:
+// the robot simulator serves Modbus on loopback and the station drives it through the
+// real Modbus client; the cameras render the moving door (with the robot's arm in
+// view) and the tracker follows it from the scan onwards; the job runner marks the
+// defect list; every spray is compared with where the defect truly was at that instant.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "dentmark/common/protocol/messages.h"
+#include "dentmark/firmware/simulation/workcell.h"
+
+namespace dentmark::simulation {
+
+struct TruthDefect {
+  std::string defect_class;                            // "dent", "bump", ...
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // sls, m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();   // sls, unit, outward
+  double diameter = 0.0;
+  double height = 0.0;
+};
+
+// What the scan's truth file says about the scanned door.
+struct ScanTruth {
+  std::vector<TruthDefect> defects;
+  Transform T_sls_panel = Transform::Identity();
+  double panel_width = 1.0, panel_height = 0.8;  // m
+};
+
+struct MarkError {
+  std::uint32_t defect_id = 0;
+  int truth_index = -1;        // matched truth defect (-1: the mark has no true defect)
+  double t_spray = 0.0;        // s after the scan
+  Eigen::Vector3d error_base;  // true tip − (true defect + standoff · normal), base axes, m
+};
+
+struct ScenarioResult {
+  ScenarioOptions options;
+  protocol::MarkReport report;
+  std::vector<MarkError> errors;  // one per spray matched to a true defect
+  int defects_sent = 0;
+  int marked = 0;
+  int unmatched_marks = 0;  // sprays with no true defect within 10 mm (false detections)
+  Eigen::Vector3d mean_abs = Eigen::Vector3d::Zero();  // mean |e_x|, |e_y|, |e_z|, m
+  Eigen::Vector3d max_abs = Eigen::Vector3d::Zero();
+  long frames_tracked = 0, frames_failed = 0;
+  double sim_seconds = 0.0, real_seconds = 0.0;
+};
+
+struct SimulationOptions {
+  double clock_rate = 4.0;   // simulated seconds per real second
+  bool arm_occludes = true;  // render the robot's arm in the cameras' view
+  double lighting = 0.2;     // relative gain swing over 40 s
+  // Use the true motion instead of the tracker (isolates tracking from the rest).
+  bool truth_motion = false;
+};
+
+// Runs one scenario. Throws std::runtime_error when the simulation itself cannot run
+// (ports, tracker start); marking failures are in the result.
+ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
+                            const protocol::DefectList& list, const ScanTruth& truth);
+
+}  // namespace dentmark::simulation

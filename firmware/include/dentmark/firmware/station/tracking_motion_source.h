@@ -1,0 +1,71 @@
+#pragma once
+// MotionSource over live stereo frames: a thread takes each stereo frame from a frame
+// source (hal cameras, replay or the simulator), runs the tracker on it and publishes
+// the estimate. Prediction extrapolates the tracker's filtered motion at constant
+// velocity (design.md §4: M(t) predicted to the instant the tool arrives).
+//
+// When tracking falls behind the frame source, frames queue in the source; the source
+// decides what to drop (cameras keep only the newest buffers).
+
+#include <atomic>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dentmark/firmware/station/motion_source.h"
+#include "dentmark/firmware/track/tracker.h"
+
+namespace dentmark::station {
+
+struct StereoFrame {
+  cv::Mat left, right;  // 8-bit grey or BGR
+  double t = 0.0;       // s, clock time of exposure
+  long index = 0;
+};
+
+// Returns the next frame, or nullopt when the source has ended (or timed out).
+using StereoFrameSource = std::function<std::optional<StereoFrame>()>;
+
+class TrackingMotionSource final : public MotionSource {
+ public:
+  // Starts the tracker on the source's first frame with rough camR seeds; throws
+  // track::TrackError when that fails. Then tracks in a thread until stop().
+  TrackingMotionSource(track::StereoCalibration calibration, std::vector<cv::Point2f> seeds_right,
+                       StereoFrameSource frames, track::TrackerOptions options = {});
+  ~TrackingMotionSource() override;
+  TrackingMotionSource(const TrackingMotionSource&) = delete;
+  TrackingMotionSource& operator=(const TrackingMotionSource&) = delete;
+
+  std::optional<MotionEstimate> latest() override;
+  Transform predict(double t) override;
+  void stop();
+  long frames_tracked() const { return frames_.load(); }
+  long frames_failed() const { return failed_.load(); }
+  // True once the source has ended (no more frames).
+  bool ended() const { return ended_.load(); }
+
+ private:
+  void run();
+  void publish(const track::FrameResult& r);
+
+  track::Tracker tracker_;
+  StereoFrameSource source_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> ended_{false};
+  std::atomic<long> frames_{0};
+  std::atomic<long> failed_{0};
+  mutable std::mutex mutex_;
+  std::deque<MotionEstimate> history_;  // newest last; ok estimates of the last few seconds
+  std::optional<MotionEstimate> latest_;
+};
+
+// M(t) extrapolated at constant velocity from two motions (t0, M0), (t1, M1), t1 > t0.
+Transform extrapolate_motion(double t0, const Transform& M0, double t1, const Transform& M1, double t);
+
+}  // namespace dentmark::station
