@@ -1,0 +1,16 @@
+#include "dentmark/firmware/hal/robot/sim_robot.h"
+
+namespace dentmark::hal {
+
+SimRobot::SimRobot(const sim::RobotSimConfig& config, clock::Clock& clock, double request_timeout)
+    : sim_(sim::RobotSimulator::serve_tcp(config, clock, "127.0.0.1", 0)) {
+  board::ModbusConfig m;
+  m.transport = board::ModbusTransport::kTcp;
+  m.host = "127.0.0.1";
+  m.port = sim_->port();
+  m.unit_id = config.unit_id;
+  m.timeout = request_timeout;
+  client_ = std::make_unique<ModbusRobot>(m, clock);
+}
+
+}  // namespace dentmark::hal
