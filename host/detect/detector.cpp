@@ -34,7 +34,10 @@ double measure_spacing(const ingest::Mesh& mesh) {
   e.reserve(n / stride + 1);
   for (std::size_t i = 0; i < n; i += stride) {
     const auto& t = mesh.triangles[i];
-    e.push_back(static_cast<double>((mesh.vertices[t[0]] - mesh.vertices[t[1]]).norm()));
+    // Shortest edge: on grid meshes the others are diagonals.
+    const auto& V = mesh.vertices;
+    e.push_back(static_cast<double>(
+        std::min({(V[t[0]] - V[t[1]]).norm(), (V[t[1]] - V[t[2]]).norm(), (V[t[2]] - V[t[0]]).norm()})));
   }
   return median_of(std::move(e));
 }
@@ -213,39 +216,68 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
 
   auto point_of = [&](std::int32_t k) { return Eigen::Vector3d(map.u[k], map.v[k], map.w[k]); };
 
-  for (int ci = 1; ci < ncomp; ++ci) {
-    const Component& comp = comps[static_cast<std::size_t>(ci)];
-    if (comp.pixels.empty()) continue;
-    // Shape: principal axes of the pixel cloud.
+  struct Shape {
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (auto k : comp.pixels) mean += Eigen::Vector2d(k % cols, k / cols);
-    mean /= static_cast<double>(comp.pixels.size());
-    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    double length = 0.0, width = 0.0, area = 0.0;
     bool touches_edge = false;
-    double area = 0.0;
+  };
+  // Shape: principal axes of the pixel cloud.
+  auto shape_of = [&](const Component& comp) {
+    Shape sh;
+    for (auto k : comp.pixels) sh.mean += Eigen::Vector2d(k % cols, k / cols);
+    sh.mean /= static_cast<double>(comp.pixels.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
     for (auto k : comp.pixels) {
-      const Eigen::Vector2d d = Eigen::Vector2d(k % cols, k / cols) - mean;
+      const Eigen::Vector2d d = Eigen::Vector2d(k % cols, k / cols) - sh.mean;
       cov += d * d.transpose();
-      touches_edge = touches_edge || edge_zone.data[k];
-      area += map.weight[k] * h * h;
+      sh.touches_edge = sh.touches_edge || edge_zone.data[k];
+      sh.area += map.weight[k] * h * h;
     }
     cov /= static_cast<double>(comp.pixels.size());
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
-    const double length = (4.0 * std::sqrt(std::max(0.0, eig.eigenvalues()(1))) + 1.0) * h;
-    const double width = (4.0 * std::sqrt(std::max(0.0, eig.eigenvalues()(0))) + 1.0) * h;
+    sh.length = (4.0 * std::sqrt(std::max(0.0, eig.eigenvalues()(1))) + 1.0) * h;
+    sh.width = (4.0 * std::sqrt(std::max(0.0, eig.eigenvalues()(0))) + 1.0) * h;
+    return sh;
+  };
+  auto design_reason_of = [&](const Shape& sh) -> const char* {
+    if (sh.touches_edge) return "touches a border or opening";
+    if (sh.length > cfg.max_defect_diameter) return "larger than any defect (handle, panel shape)";
+    if (sh.length > 0.025 && sh.length / sh.width > cfg.max_elongation)
+      return "long and thin (character line)";
+    return nullptr;
+  };
+  // Pieces next to a design feature (the rim around a handle, the shoulders of a
+  // crease) belong to it: a reference surface cannot follow them there.
+  cv::Mat near_design(rows, cols, CV_8U, cv::Scalar(0));
+  for (int ci = 1; ci < ncomp; ++ci) {
+    const Component& comp = comps[static_cast<std::size_t>(ci)];
+    if (comp.pixels.empty() || !design_reason_of(shape_of(comp))) continue;
+    for (auto k : comp.pixels) near_design.data[k] = 255;
+  }
+  {
+    const int rad = std::max(2, static_cast<int>(std::lround(0.008 / h)));
+    cv::dilate(near_design, near_design,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  }
 
+  for (int ci = 1; ci < ncomp; ++ci) {
+    const Component& comp = comps[static_cast<std::size_t>(ci)];
+    if (comp.pixels.empty()) continue;
+    const Shape shape = shape_of(comp);
+    const Eigen::Vector2d mean = shape.mean;
+    const double length = shape.length, area = shape.area;
     Finding f;
     f.pixels = static_cast<int>(comp.pixels.size());
     protocol::Defect& d = f.defect;
     d.area = area;
     d.normal = w_axis;
-    const char* design_reason = nullptr;
-    if (touches_edge)
-      design_reason = "touches a border or opening";
-    else if (length > cfg.max_defect_diameter)
-      design_reason = "larger than any defect (handle, panel shape)";
-    else if (length > 0.025 && length / width > cfg.max_elongation)
-      design_reason = "long and thin (character line)";
+    const char* design_reason = design_reason_of(shape);
+    if (!design_reason)
+      for (auto k : comp.pixels)
+        if (near_design.data[k]) {
+          design_reason = "next to a design feature";
+          break;
+        }
     if (design_reason) {
       Eigen::Vector3d p = Eigen::Vector3d::Zero();
       double ws = 0.0, extreme = 0.0;
@@ -280,6 +312,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
     int ring = 0;
+    const int guard = std::max(2, static_cast<int>(std::lround(0.25 * length / h)));
     auto basis = [&](double pu, double pv) {
       const double x = (pu - cu) * sc, y = (pv - cv_) * sc;
       Eigen::Matrix<double, 6, 1> b;
@@ -290,6 +323,8 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
         if (!(map.weight[k] > 0.0f) || any.data[k] || edge_zone.data[k]) continue;
+        // Keep the defect's faint rim out of its own reference.
+        if (c >= c0 - guard && c <= c1 + guard && r >= r0 - guard && r <= r1 + guard) continue;
         const auto b = basis(map.u[k], map.v[k]);
         N += map.weight[k] * b * b.transpose();
         rhs += map.weight[k] * map.w[k] * b;
@@ -365,7 +400,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     // Height: vertex of an isotropic paraboloid fitted to the raw deviation near the peak.
     double height = peak_val;
     {
-      const double rad = std::max(1.5 * h, 0.6 * r_half);
+      const double rad = std::max(1.5 * h, 0.5 * r_half);
       const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
       Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
       Eigen::Vector4d b = Eigen::Vector4d::Zero();
@@ -410,6 +445,19 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       ws += wk;
     }
     pos /= ws;
+    if (coarse && local) {
+      // A pixel spans several samples on a coarse scan and averages a narrow apex
+      // away: take the apex from the mesh vertices that fall in the candidate.
+      double best = 0.0;
+      for (const auto& vx : mesh.vertices) {
+        const Eigen::Vector3d q = map.to_map(vx.cast<double>());
+        const long k = map.pixel_of(q.x(), q.y());
+        if (k < 0 || labels.at<int>(static_cast<int>(k / cols), static_cast<int>(k % cols)) != ci) continue;
+        const double dv = (q.z() - basis(q.x(), q.y()).dot(quad)) * map.cos_tilt[static_cast<std::size_t>(k)];
+        if (sign * dv > best) best = sign * dv, pos = q;
+      }
+      if (best > std::abs(height)) height = sign * best;
+    }
     d.position = map.to_scan(pos.x(), pos.y(), pos.z());
     // Normal: least-squares plane over a normal_patch square around the defect,
     // leaving out the candidate itself.

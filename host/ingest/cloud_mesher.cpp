@@ -91,7 +91,7 @@ void mesh_point_cloud(Mesh& mesh) {
   }
   // One point per grid cell (the one nearest the cell centre); cells slightly
   // smaller than the spacing so that few points are lost.
-  cell *= 0.85;
+  cell *= 1.0;
   const auto W = static_cast<std::size_t>(ext.x() / cell) + 2,
              H = static_cast<std::size_t>(ext.y() / cell) + 2;
   if (W * H > 400'000'000ull) return;

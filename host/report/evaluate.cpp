@@ -40,7 +40,10 @@ Evaluation evaluate(const TruthFile& truth, const DefectsFile& det) {
   for (std::size_t t = 0; t < truth.defects.size(); ++t)
     for (std::size_t d = 0; d < det.defects.size(); ++d) {
       const auto& td = truth.defects[t].defect;
-      const double dist = (td.position - det.defects[d].defect.position).norm();
+      // Along the surface: the offset along the normal is the height's business.
+      const Eigen::Vector3d off = det.defects[d].defect.position - td.position;
+      const Eigen::Vector3d n = td.normal.normalized();
+      const double dist = (off - off.dot(n) * n).norm();
       if (dist <= std::max(0.005, 0.5 * td.diameter)) pairs.push_back({dist, t, d});
     }
   std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.dist < b.dist; });

@@ -30,7 +30,8 @@ struct Evaluation {
   void add(const Evaluation& other);  // pools several scans
 };
 
-// A reported defect matches a truth defect within max(5 mm, diameter/2) of its position.
+// A reported defect matches a truth defect of the same sign within max(5 mm, diameter/2)
+// of its position, measured along the surface (across the truth normal).
 Evaluation evaluate(const TruthFile& truth, const DefectsFile& detected);
 
 std::string format_evaluation(const Evaluation& e);

@@ -1,0 +1,256 @@
+// Ingest: every format gives the same mesh; malformed files give one-line errors that
+// name the file and the position, never a crash.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "dentmark/host/ingest/cloud_mesher.h"
+#include "dentmark/host/ingest/mesh_writer.h"
+#include "dentmark/host/ingest/read_mesh.h"
+
+namespace dentmark::ingest {
+namespace {
+
+std::string temp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() /
+          ("dentmark_ingest_" + std::to_string(::getpid()) + "_" + name))
+      .string();
+}
+
+std::string write_file(const std::string& name, const std::string& bytes) {
+  const std::string p = temp_path(name);
+  std::ofstream(p, std::ios::binary) << bytes;
+  return p;
+}
+
+template <typename T>
+void put(std::string& s, T v, bool big = false) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (big) std::reverse(b, b + sizeof(T));
+  s.append(b, sizeof(T));
+}
+
+// A unit square split in two plus a triangle: 5 vertices, 3 triangles after fans.
+const float kV[5][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {2, 0, 1}};
+
+void expect_reference(const Mesh& m, float scale = 1.0f) {
+  ASSERT_EQ(m.vertices.size(), 5u);
+  ASSERT_EQ(m.triangles.size(), 3u);
+  for (int i = 0; i < 5; ++i)
+    for (int a = 0; a < 3; ++a) EXPECT_FLOAT_EQ(m.vertices[i][a], kV[i][a] * scale);
+  EXPECT_EQ(m.triangles[0], (std::array<std::uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(m.triangles[1], (std::array<std::uint32_t, 3>{0, 2, 3}));
+  EXPECT_EQ(m.triangles[2], (std::array<std::uint32_t, 3>{1, 4, 2}));
+}
+
+std::string ascii_ply() {
+  std::string s =
+      "ply\nformat ascii 1.0\ncomment test\nelement vertex 5\nproperty float x\nproperty float y\n"
+      "property float z\nproperty uchar red\nelement face 2\nproperty list uchar int vertex_indices\n"
+      "end_header\n";
+  for (auto& v : kV)
+    s += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + " 7\n";
+  s += "4 0 1 2 3\n3 1 4 2\n";
+  return s;
+}
+
+std::string binary_ply(bool big, bool dbl, const char* count_type, const char* index_type) {
+  std::string s = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\nelement vertex 5\nproperty " + (dbl ? "double" : "float") + " x\nproperty " +
+                  (dbl ? "double" : "float") + " y\nproperty " + (dbl ? "double" : "float") +
+                  " z\nproperty float confidence\nelement face 2\nproperty list " + count_type + " " +
+                  index_type + " vertex_indices\nproperty uchar flags\nend_header\n";
+  for (auto& v : kV) {
+    for (int a = 0; a < 3; ++a) dbl ? put<double>(s, v[a], big) : put<float>(s, v[a], big);
+    put<float>(s, 0.5f, big);
+  }
+  auto count = [&](int n) {
+    if (std::string(count_type) == "uchar")
+      put<std::uint8_t>(s, static_cast<std::uint8_t>(n));
+    else
+      put<std::int32_t>(s, n, big);
+  };
+  auto index = [&](int i) {
+    if (std::string(index_type) == "int")
+      put<std::int32_t>(s, i, big);
+    else if (std::string(index_type) == "uint")
+      put<std::uint32_t>(s, static_cast<std::uint32_t>(i), big);
+    else
+      put<std::uint16_t>(s, static_cast<std::uint16_t>(i), big);
+  };
+  count(4);
+  for (int i : {0, 1, 2, 3}) index(i);
+  put<std::uint8_t>(s, 1);
+  count(3);
+  for (int i : {1, 4, 2}) index(i);
+  put<std::uint8_t>(s, 1);
+  return s;
+}
+
+TEST(Ingest, AsciiPly) {
+  expect_reference(read_mesh(write_file("a.ply", ascii_ply())));
+}
+
+TEST(Ingest, BinaryPlyAllEncodingsAndTypes) {
+  for (bool big : {false, true})
+    for (bool dbl : {false, true})
+      for (const char* ct : {"uchar", "int"})
+        for (const char* it : {"int", "uint", "ushort"}) {
+          SCOPED_TRACE(std::string(big ? "BE " : "LE ") + (dbl ? "double " : "float ") + ct + " " + it);
+          expect_reference(read_mesh(write_file("b.ply", binary_ply(big, dbl, ct, it))));
+        }
+}
+
+TEST(Ingest, ObjWithPolygonsTexturesAndNegativeIndices) {
+  std::string s = "# comment\no panel\n";
+  for (auto& v : kV)
+    s += "v " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
+  s += "vn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1 4/1/1\nf -4//1 -1//1 -3//1\n";
+  expect_reference(read_mesh(write_file("c.obj", s)));
+}
+
+TEST(Ingest, StlAsciiAndBinary) {
+  std::string a = "solid t\n", b(80, ' ');
+  const int tris[3][3] = {{0, 1, 2}, {0, 2, 3}, {1, 4, 2}};
+  put<std::uint32_t>(b, 3);
+  for (auto& t : tris) {
+    a += "facet normal 0 0 1\n outer loop\n";
+    for (float f : {0.f, 0.f, 1.f}) put<float>(b, f);
+    for (int i : t) {
+      a += "  vertex " + std::to_string(kV[i][0]) + " " + std::to_string(kV[i][1]) + " " +
+           std::to_string(kV[i][2]) + "\n";
+      for (int k = 0; k < 3; ++k) put<float>(b, kV[i][k]);
+    }
+    a += " endloop\nendfacet\n";
+    put<std::uint16_t>(b, 0);
+  }
+  a += "endsolid t\n";
+  for (const auto& bytes : {a, b}) {
+    const Mesh m = read_mesh(write_file("d.stl", bytes));
+    ASSERT_EQ(m.triangles.size(), 3u);
+    for (int t = 0; t < 3; ++t)
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 3; ++k) EXPECT_FLOAT_EQ(m.vertices[m.triangles[t][c]][k], kV[tris[t][c]][k]);
+  }
+}
+
+TEST(Ingest, MillimetresAreScaledToMetres) {
+  ReadOptions o;
+  o.scale_to_m = 1e-3;
+  expect_reference(read_mesh(write_file("e.ply", ascii_ply()), o), 1e-3f);
+}
+
+TEST(Ingest, UnorganisedPointCloudIsMeshedInTheSensorView) {
+  // A 60 x 60 jittered grid on a tilted plane 1 m in front of the sensor, shuffled.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> j(-0.15f, 0.15f);
+  std::vector<Eigen::Vector3f> pts;
+  const float s = 0.001f;
+  for (int y = 0; y < 60; ++y)
+    for (int x = 0; x < 60; ++x) {
+      const float px = (x + j(rng)) * s, py = (y + j(rng)) * s;
+      pts.emplace_back(px, py, 1.0f + 0.2f * px);
+    }
+  std::shuffle(pts.begin(), pts.end(), rng);
+  std::string xyz;
+  for (auto& p : pts)
+    xyz += std::to_string(p.x()) + "," + std::to_string(p.y()) + "," + std::to_string(p.z()) + " 0.5\n";
+  const Mesh m = read_mesh(write_file("f.xyz", xyz));
+  EXPECT_TRUE(m.from_point_cloud);
+  // Nearly the full grid's 2 x 59 x 59 triangles, none long, all facing one way.
+  EXPECT_GT(m.triangles.size(), 0.85 * 2 * 59 * 59);
+  EXPECT_LT(m.triangles.size(), 1.05 * 2 * 59 * 59);
+  double area = 0.0;
+  for (const auto& t : m.triangles) {
+    const Eigen::Vector3f e1 = m.vertices[t[1]] - m.vertices[t[0]], e2 = m.vertices[t[2]] - m.vertices[t[0]];
+    EXPECT_LT(std::max(e1.norm(), e2.norm()), 4 * s);
+    area += 0.5 * e1.cross(e2).norm();
+  }
+  const double full = 0.059 * 0.059 * std::sqrt(1.04);
+  EXPECT_NEAR(area, full, 0.1 * full);
+}
+
+TEST(Ingest, ErrorsNameFileAndPosition) {
+  auto message = [](const std::string& name, const std::string& bytes) {
+    const std::string p = write_file(name, bytes);
+    try {
+      read_mesh(p);
+    } catch (const IngestError& e) {
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+      EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "no error for " << name;
+    return std::string();
+  };
+  std::string bad = ascii_ply();
+  bad.replace(bad.find("3 1 4 2"), 7, "3 1 9 2");
+  EXPECT_NE(message("g.ply", bad).find("line 18: vertex index 9 out of range"), std::string::npos);
+  std::string bad2 = ascii_ply();
+  bad2.replace(bad2.find("1.000000 1.000000"), 8, "1.0x0000");
+  EXPECT_NE(message("h.ply", bad2).find("line 14"), std::string::npos);
+  EXPECT_NE(message("i.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n").find("line 3"), std::string::npos);
+  const std::string b = binary_ply(false, false, "uchar", "int");
+  EXPECT_NE(message("j.ply", b.substr(0, b.size() - 5)).find("byte"), std::string::npos);
+  EXPECT_NE(message("k.stl", "hello").find("byte 0"), std::string::npos);
+  EXPECT_NE(message("l.ply", "").find("empty"), std::string::npos);
+  EXPECT_THROW(read_mesh(temp_path("missing.ply")), IngestError);
+}
+
+// Property: any truncation or corruption of a valid file is either read or reported
+// as an IngestError; it never crashes, hangs or returns out-of-range indices.
+TEST(Ingest, TruncationAndCorruptionNeverCrash) {
+  std::mt19937 rng(42);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"p.ply", binary_ply(false, false, "uchar", "int")},
+      {"q.ply", binary_ply(true, true, "int", "uint")},
+      {"r.ply", ascii_ply()},
+      {"s.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3 4\n"}};
+  int errors = 0, reads = 0;
+  for (const auto& [name, bytes] : files) {
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      std::string cut = bytes.substr(0, n);
+      std::string corrupt = bytes;
+      for (int k = 0; k < 3; ++k) corrupt[rng() % corrupt.size()] = static_cast<char>(rng());
+      for (const auto& variant : {cut, corrupt}) {
+        try {
+          const Mesh m = read_mesh(write_file(name, variant));
+          for (const auto& t : m.triangles)
+            for (auto i : t) ASSERT_LT(i, m.vertices.size());
+          ++reads;
+        } catch (const IngestError&) {
+          ++errors;
+        }
+      }
+    }
+  }
+  EXPECT_GT(errors, 100);
+  EXPECT_GT(reads, 0);
+}
+
+TEST(Ingest, NonFiniteVerticesDropTheirFaces) {
+  std::string s = ascii_ply();
+  s.replace(s.find("2.000000 0.000000 1.000000"), 26, "nan 0 1");
+  const Mesh m = read_mesh(write_file("t.ply", s));
+  EXPECT_EQ(m.nonfinite_vertices, 1u);
+  EXPECT_EQ(m.triangles.size(), 2u);
+  EXPECT_EQ(m.dropped_faces, 1u);
+}
+
+TEST(Ingest, PlyWriterRoundTrips) {
+  Mesh m = read_mesh(write_file("u.ply", ascii_ply()));
+  const std::string out = temp_path("v.ply");
+  write_ply(out, m, std::vector<std::array<std::uint8_t, 3>>(5, {1, 2, 3}));
+  expect_reference(read_mesh(out));
+  EXPECT_FALSE(std::filesystem::exists(out + ".tmp"));
+}
+
+}  // namespace
+}  // namespace dentmark::ingest

@@ -1,0 +1,119 @@
+// Linear octree: eq. (1)-(3) from sums match the brute-force definitions; subdivision
+// finds what is sharp; grouping (eq. 4, 26-adjacency) splits and drops correctly.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "dentmark/host/detect/grouping.h"
+#include "dentmark/host/detect/linear_octree.h"
+
+namespace dentmark::detect {
+namespace {
+
+// A height field z(x, y) on an n x n grid of the given step, as a mesh.
+template <typename F>
+ingest::Mesh grid_mesh(int n, double step, F&& z) {
+  ingest::Mesh m;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) m.vertices.emplace_back(x * step, y * step, z(x * step, y * step));
+  for (int y = 0; y + 1 < n; ++y)
+    for (int x = 0; x + 1 < n; ++x) {
+      const auto a = static_cast<std::uint32_t>(y * n + x), b = a + 1, c = a + static_cast<std::uint32_t>(n),
+                 d = c + 1;
+      m.triangles.push_back({a, b, d});
+      m.triangles.push_back({a, d, c});
+    }
+  return m;
+}
+
+TEST(LinearOctree, MortonRoundTrip) {
+  std::mt19937 rng(1);
+  for (int i = 0; i < 1000; ++i) {
+    const Eigen::Vector3i c(static_cast<int>(rng() % (1 << 21)), static_cast<int>(rng() % (1 << 21)),
+                            static_cast<int>(rng() % (1 << 21)));
+    EXPECT_EQ(LinearOctree::decode(LinearOctree::encode(c)), c);
+  }
+  // Morton order: a parent's 8 children are consecutive.
+  EXPECT_EQ(LinearOctree::encode({1, 1, 1}), 7u);
+  EXPECT_EQ(LinearOctree::encode({2, 0, 0}), 8u);
+}
+
+TEST(LinearOctree, SigmaFromSumsEqualsEquation3) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> g(0.0, 0.002);
+  const ingest::Mesh m =
+      grid_mesh(40, 0.001, [&](double x, double y) { return 0.05 * x * x + 0.2 * y + g(rng); });
+  const LinearOctree tree = LinearOctree::build(m, 0.004);
+  // Brute force eq. (1)-(3) for whole tree and for random leaf ranges.
+  std::uniform_int_distribution<std::size_t> pick(0, tree.leaves().size());
+  for (int trial = 0; trial < 20; ++trial) {
+    std::size_t b = pick(rng), e = pick(rng);
+    if (trial == 0) b = 0, e = tree.leaves().size();
+    if (b > e) std::swap(b, e);
+    if (b == e) continue;
+    std::vector<double> a;
+    std::vector<Eigen::Vector3d> N;
+    for (std::size_t l = b; l < e; ++l)
+      for (std::uint32_t k = tree.leaves()[l].first; k < tree.leaves()[l].first + tree.leaves()[l].count;
+           ++k) {
+        const auto& t = m.triangles[tree.order()[k]];
+        const Eigen::Vector3d v1 = (m.vertices[t[1]] - m.vertices[t[0]]).cast<double>(),
+                              v2 = (m.vertices[t[2]] - m.vertices[t[0]]).cast<double>();
+        a.push_back(0.5 * v1.cross(v2).norm());  // eq. (1)
+        N.push_back(v1.cross(v2).normalized());
+      }
+    double A = 0;
+    Eigen::Vector3d Nbar = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < a.size(); ++i) A += a[i], Nbar += a[i] * N[i];
+    Nbar /= A;  // eq. (2)
+    double var = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) var += a[i] * (N[i] - Nbar).squaredNorm();
+    const double sigma = std::sqrt(var / A);  // eq. (3)
+    const NodeStats s = tree.stats(b, e);
+    EXPECT_NEAR(s.area, A, 1e-6 * A);  // float vertices
+    EXPECT_NEAR(s.sigma, sigma, 1e-5);
+    EXPECT_GT(sigma, 0.01);  // the test has teeth: the noise spreads the normals
+  }
+}
+
+TEST(LinearOctree, LeavesDoNotDependOnTriangleOrder) {
+  ingest::Mesh m = grid_mesh(50, 0.001, [](double x, double y) { return 0.1 * std::sin(40 * x) * y; });
+  const LinearOctree a = LinearOctree::build(m, 0.002);
+  std::mt19937 rng(5);
+  std::shuffle(m.triangles.begin(), m.triangles.end(), rng);
+  const LinearOctree b = LinearOctree::build(m, 0.002);
+  ASSERT_EQ(a.leaves().size(), b.leaves().size());
+  for (std::size_t i = 0; i < a.leaves().size(); ++i) {
+    EXPECT_EQ(a.leaves()[i].key, b.leaves()[i].key);
+    EXPECT_NEAR(a.leaves()[i].area, b.leaves()[i].area, 1e-12);
+    EXPECT_EQ(a.leaves()[i].count, b.leaves()[i].count);
+  }
+  EXPECT_EQ(a.depth(), b.depth());
+  EXPECT_NEAR(a.leaf_size(), 0.002, 1e-15);
+}
+
+TEST(LinearOctree, SubdivisionFindsARidgeAndGroupingSeparatesTwo) {
+  // Flat plane with two sharp ridges (fold of 0.6 rad) at x = 20 mm and x = 60 mm.
+  auto z = [](double x, double) {
+    return 0.3 * std::max(0.0, 0.004 - std::abs(x - 0.020)) +
+           0.3 * std::max(0.0, 0.004 - std::abs(x - 0.060));
+  };
+  const ingest::Mesh m = grid_mesh(81, 0.001, z);
+  const LinearOctree tree = LinearOctree::build(m, 0.002);
+  const auto feat = tree.feature_leaves(0.1, 0.2);
+  ASSERT_FALSE(feat.empty());
+  for (auto l : feat) {
+    const Eigen::Vector3d c = tree.leaves()[l].sum_ac / tree.leaves()[l].area;
+    EXPECT_LT(std::min(std::abs(c.x() - 0.020), std::abs(c.x() - 0.060)), 0.0065) << c.transpose();
+  }
+  const auto groups = group_features(tree, feat, 0.0);
+  EXPECT_EQ(groups.size(), 2u);
+  // A very high occupancy floor removes everything (eq. 4 drops sparse nodes).
+  EXPECT_TRUE(group_features(tree, feat, 100.0).empty());
+}
+
+}  // namespace
+}  // namespace dentmark::detect
