@@ -125,8 +125,9 @@ void SafetySupervisor::close_valve() {
 bool SafetySupervisor::pulse(double duration) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (latched() || !(duration > 0.0)) return false;
-  pulse_end_ = clock_.now() + duration;
   valve_->set(true);
+  // Deadline after opening: the valve is open for at least 'duration'.
+  pulse_end_ = clock_.now() + duration;
   return true;
 }
 
