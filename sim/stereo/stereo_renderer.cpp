@@ -104,21 +104,34 @@ cv::Mat StereoRenderer::render(Eye eye, const Transform& T_camL_panel, const Ren
                                   cv::Point(static_cast<int>(std::ceil(std::min(u1 + 5, 1e6))),
                                             static_cast<int>(std::ceil(std::min(v1 + 5, 1e6))))) &
                          frame_rect;
+    // Pixels per metre across each edge, from the homography's Jacobian at the shape's
+    // centre (it varies by a few per cent over a shape: the ramp stays symmetric).
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (const auto& q : shape.polygon) centre += q;
+    centre /= static_cast<double>(shape.polygon.size());
+    const Eigen::Vector3d nh = h * Eigen::Vector3d(centre.x(), centre.y(), 1.0);
+    Eigen::Matrix2d j;
+    j << (hi(0, 0) - centre.x() * hi(2, 0)) * inv_fx, (hi(0, 1) - centre.x() * hi(2, 1)) * inv_fy,
+        (hi(1, 0) - centre.y() * hi(2, 0)) * inv_fx, (hi(1, 1) - centre.y() * hi(2, 1)) * inv_fy;
+    j *= nh.z();
+    std::vector<double> em_x, em_y, ec;
+    for (const Edge& e : edges) {
+      const double inv = 1.0 / (j.transpose() * e.m).norm();
+      em_x.push_back(e.m.x() * inv), em_y.push_back(e.m.y() * inv), ec.push_back(e.c * inv);
+    }
+    const double h00 = hi(0, 0), h01 = hi(0, 1), h02 = hi(0, 2), h10 = hi(1, 0), h11 = hi(1, 1),
+                 h12 = hi(1, 2), h20 = hi(2, 0), h21 = hi(2, 1), h22 = hi(2, 2);
     for (int v = box.y; v < box.y + box.height; ++v) {
       const cv::Vec2f* nrow = normalized_[static_cast<int>(eye)].ptr<cv::Vec2f>(v);
       float* irow = img.ptr<float>(v);
       for (int u = box.x; u < box.x + box.width; ++u) {
-        const Eigen::Vector3d a = hi * Eigen::Vector3d(nrow[u][0], nrow[u][1], 1.0);
-        if (a.z() <= 0.0) continue;
-        const double x = a.x() / a.z(), y = a.y() / a.z();
-        // d(panel)/d(pixel): the homography's Jacobian, then 1/f (distortion's own slope ~1).
-        Eigen::Matrix2d j;
-        j << (hi(0, 0) - x * hi(2, 0)) * inv_fx, (hi(0, 1) - x * hi(2, 1)) * inv_fy,
-            (hi(1, 0) - y * hi(2, 0)) * inv_fx, (hi(1, 1) - y * hi(2, 1)) * inv_fy;
-        j /= a.z();
+        const double nx = nrow[u][0], ny = nrow[u][1];
+        const double az = h20 * nx + h21 * ny + h22;
+        if (az <= 0.0) continue;
+        const double x = (h00 * nx + h01 * ny + h02) / az, y = (h10 * nx + h11 * ny + h12) / az;
         double coverage = 1.0;
-        for (const Edge& e : edges) {
-          const double d_pix = (e.m.x() * x + e.m.y() * y - e.c) / (j.transpose() * e.m).norm();
+        for (std::size_t k = 0; k < edges.size(); ++k) {
+          const double d_pix = em_x[k] * x + em_y[k] * y - ec[k];
           coverage *= std::clamp(0.5 - d_pix, 0.0, 1.0);
           if (coverage <= 0.0) break;
         }

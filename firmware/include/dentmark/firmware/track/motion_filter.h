@@ -14,8 +14,8 @@
 namespace dentmark::track {
 
 struct MotionFilterOptions {
-  double accel_noise_translation = 0.01;  // m/s^2/sqrt(Hz): how hard a smooth line may accelerate
-  double accel_noise_rotation = 0.02;     // rad/s^2/sqrt(Hz)
+  double accel_noise_translation = 0.003;  // m/s^2/sqrt(Hz): how hard a smooth line may accelerate
+  double accel_noise_rotation = 0.003;     // rad/s^2/sqrt(Hz)
   double gate_sigmas = 4.0;
   bool enabled = true;
 };

@@ -1,0 +1,71 @@
+// Speed of the tracker per 1280 x 1024 stereo frame with 10 features (issue target:
+// <= 5 ms on one x86 core). Frames are rendered once into memory; only track() is timed.
+#include <benchmark/benchmark.h>
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "dentmark/firmware/track/sequence.h"
+#include "dentmark/firmware/track/tracker.h"
+#include "dentmark/sim/stereo/sequence_writer.h"
+
+namespace {
+
+using namespace dentmark;
+
+struct Frames {
+  track::Sequence seq;
+  std::vector<cv::Point2f> seeds;
+  std::vector<cv::Mat> left, right;
+};
+
+const Frames& frames() {
+  static const Frames f = [] {
+    const auto dir =
+        std::filesystem::temp_directory_path() / ("dentmark-bench-" + std::to_string(::getpid()));
+    stereo::SequenceOptions o;  // 1280 x 1024, f = 1740 px, 0.5 m baseline, 2.8 m
+    o.seconds = 3.0;
+    stereo::write_sequence(o, dir);
+    Frames out;
+    out.seq = track::load_sequence(dir);
+    out.seeds = track::load_seeds(dir / "seeds.yaml", out.seq.calibration.size);
+    for (const auto& e : out.seq.frames) {
+      out.left.push_back(track::load_grey(e.left, out.seq.calibration.size));
+      out.right.push_back(track::load_grey(e.right, out.seq.calibration.size));
+    }
+    std::filesystem::remove_all(dir);
+    return out;
+  }();
+  return f;
+}
+
+void BM_TrackStereoFrame1280x1024(benchmark::State& state) {
+  const Frames& f = frames();
+  track::Tracker tracker(f.seq.calibration);
+  tracker.start(f.left[0], f.right[0], f.seq.frames[0].t, f.seeds);
+  std::size_t k = 1;
+  int features = 0;
+  for (auto _ : state) {
+    if (k == f.left.size()) {
+      state.PauseTiming();
+      tracker.start(f.left[0], f.right[0], f.seq.frames[0].t, f.seeds);
+      k = 1;
+      state.ResumeTiming();
+    }
+    const auto r = tracker.track(f.left[k], f.right[k], f.seq.frames[k].t, static_cast<long>(k));
+    features = r.features;
+    benchmark::DoNotOptimize(r.motion);
+    ++k;
+  }
+  state.counters["features"] = features;
+}
+BENCHMARK(BM_TrackStereoFrame1280x1024)->Unit(benchmark::kMillisecond);
+
+void BM_StartFromSeeds1280x1024(benchmark::State& state) {
+  const Frames& f = frames();
+  track::Tracker tracker(f.seq.calibration);
+  for (auto _ : state) benchmark::DoNotOptimize(tracker.start(f.left[0], f.right[0], 0.0, f.seeds));
+}
+BENCHMARK(BM_StartFromSeeds1280x1024)->Unit(benchmark::kMillisecond);
+
+}  // namespace
