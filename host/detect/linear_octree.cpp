@@ -85,10 +85,20 @@ LinearOctree LinearOctree::build(const ingest::Mesh& mesh, double leaf_size) {
   const bool fits = key_bits + id_bits <= 64;
   std::vector<std::uint64_t> keys_only;
   if (!fits) keys_only.resize(T.size());
+  // Per-triangle a_i N_i and centroid, computed in mesh order (sequential reads) so that
+  // the per-leaf sums later gather one 24-byte record per triangle, whatever the order.
+  struct TriangleSums {
+    Eigen::Vector3f half_cross, centroid;
+  };
+  std::vector<TriangleSums> sums(T.size());
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     const auto& t = T[i];
-    const Eigen::Vector3f c = (V[t[0]] + V[t[1]] + V[t[2]]) * (inv / 3.0f) - org * inv;
+    const Eigen::Vector3f va = V[t[0]], vb = V[t[1]], vc = V[t[2]];
+    // Eq. (1): a_i = |v1 x v2| / 2; a_i N_i is half the cross product itself.
+    sums[i].half_cross = 0.5f * (vb - va).cross(vc - va);
+    sums[i].centroid = (va + vb + vc) * (1.0f / 3.0f);
+    const Eigen::Vector3f c = (sums[i].centroid - org) * inv;
     Eigen::Vector3i q;
     for (int a = 0; a < 3; ++a) q[a] = std::clamp(static_cast<int>(c[a]), 0, cells - 1);
     const std::uint64_t key = encode(q);
@@ -128,14 +138,12 @@ LinearOctree LinearOctree::build(const ingest::Mesh& mesh, double leaf_size) {
     double A = 0.0;
     Eigen::Vector3d S = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero();
     for (std::uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) {
-      const auto& t = T[tree.order_[k]];
-      const Eigen::Vector3f a = V[t[0]], b = V[t[1]], c = V[t[2]];
-      // Eq. (1): a_i = |v1 x v2| / 2; a_i N_i is half the cross product itself.
-      const Eigen::Vector3d half_cross = 0.5 * (b - a).cross(c - a).cast<double>();
+      const TriangleSums& ts = sums[tree.order_[k]];
+      const Eigen::Vector3d half_cross = ts.half_cross.cast<double>();
       const double area = half_cross.norm();
       A += area;
       S += half_cross;
-      P += area * ((a + b + c).cast<double>() / 3.0);
+      P += area * ts.centroid.cast<double>();
     }
     leaf.area = A;
     leaf.sum_an = S;
