@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
+#include <regex>
 
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/hal/camera/replay_camera.h"
@@ -234,6 +236,55 @@ TEST(SimCamera, SensorsOutOfSyncGiveNoPairsButCounts) {
   EXPECT_FALSE(stereo.grab_pair(2.0).has_value());
   EXPECT_EQ(stereo.counters().pairs, 0);
   EXPECT_GE(stereo.counters().dropped_left + stereo.counters().dropped_right, 9);
+}
+
+}  // namespace
+}  // namespace dentmark::hal
+
+namespace dentmark::hal {
+namespace {
+
+// Property: any corruption of frames.csv either parses into strictly increasing
+// frames or fails with one CameraError naming frames.csv and a line, never a crash.
+TEST_F(ReplayFolder, CorruptedIndexNeverCrashes) {
+  std::string good;
+  {
+    std::ifstream in(dir / "frames.csv");
+    good.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  std::mt19937 rng(11);
+  const std::string alphabet = "0123456789.,-+eE \r\nnaNinfxLR/";
+  int parsed = 0, rejected = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    std::string text = good;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int e = 0; e < edits && !text.empty(); ++e) {
+      const std::size_t pos = rng() % text.size();
+      switch (rng() % 3) {
+        case 0:
+          text[pos] = alphabet[rng() % alphabet.size()];
+          break;
+        case 1:
+          text.erase(pos, 1 + rng() % 3);
+          break;
+        default:
+          text.insert(pos, 1, alphabet[rng() % alphabet.size()]);
+      }
+    }
+    std::ofstream(dir / "frames.csv", std::ios::trunc) << text;
+    try {
+      const auto entries = read_replay_index(dir, StereoSide::kLeft);
+      ASSERT_FALSE(entries.empty());
+      for (std::size_t i = 1; i < entries.size(); ++i) ASSERT_GT(entries[i].t, entries[i - 1].t);
+      ++parsed;
+    } catch (const CameraError& err) {
+      ASSERT_TRUE(std::regex_search(std::string(err.what()), std::regex(R"(frames\.csv:\d+: )")))
+          << err.what();
+      ++rejected;
+    }
+  }
+  EXPECT_GT(rejected, 0);
+  EXPECT_GT(parsed, 0);  // harmless edits (e.g. in a file name) still parse
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <fstream>
+#include <random>
 #include <thread>
 
 #include "dentmark/firmware/hal/gpio/sim_gpio.h"
@@ -184,6 +186,34 @@ TEST(SafetySupervisor, DestructorClosesTheValve) {
     ASSERT_TRUE(safety.open_valve());
   }
   EXPECT_FALSE(chip.level("sprayer-valve"));
+}
+
+}  // namespace
+}  // namespace dentmark::hal
+
+namespace dentmark::hal {
+namespace {
+
+// Property: random bytes in a GPIO record file give records or a GpioError naming
+// the file and line, never a crash.
+TEST(SimGpio, CorruptedRecordNeverCrashes) {
+  char path[] = "/tmp/dentmark-gpio-XXXXXX";
+  const int fd = ::mkstemp(path);
+  ASSERT_GE(fd, 0);
+  ::close(fd);
+  std::mt19937 rng(5);
+  const std::string alphabet = "0123456789 -\nvalve01x\t";
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string text = "100 valve 1\n200 valve 0\n";
+    for (int e = 0; e < 3; ++e) text[rng() % text.size()] = alphabet[rng() % alphabet.size()];
+    std::ofstream(path, std::ios::trunc) << text;
+    try {
+      for (const auto& r : SimGpio::read_record(path)) ASSERT_FALSE(r.line.empty());
+    } catch (const GpioError& e) {
+      ASSERT_NE(std::string(e.what()).find(std::string(path) + ":"), std::string::npos) << e.what();
+    }
+  }
+  ::unlink(path);
 }
 
 }  // namespace
