@@ -345,6 +345,34 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
     const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;
     const std::size_t cs = scalar_size(ct), is = scalar_size(it);
     const std::uint64_t nv = mesh.vertices.size();
+    // Fast path: all-triangle face block whose size fits exactly in what is left
+    // (typical scanner output): checked and decoded in parallel.
+    const std::size_t rec = cs + 3 * is;
+    if (simple && &e == &elements.back() && e.count > 0 && (size - off) / rec == e.count &&
+        (size - off) % rec == 0) {
+      const char* src = base + off;
+      const auto count = static_cast<std::int64_t>(e.count);
+      std::int64_t bad = count;  // first record that is not a valid triangle
+      mesh.triangles.resize(static_cast<std::size_t>(count));
+#pragma omp parallel for schedule(static) reduction(min : bad)
+      for (std::int64_t r = 0; r < count; ++r) {
+        const char* q = src + r * static_cast<std::int64_t>(rec);
+        const std::int64_t a = load_index(q + cs, it, swap), b = load_index(q + cs + is, it, swap),
+                           c = load_index(q + cs + 2 * is, it, swap);
+        if (load_index(q, ct, swap) != 3 || a < 0 || b < 0 || c < 0 || static_cast<std::uint64_t>(a) >= nv ||
+            static_cast<std::uint64_t>(b) >= nv || static_cast<std::uint64_t>(c) >= nv) {
+          bad = std::min(bad, r);
+          continue;
+        }
+        mesh.triangles[static_cast<std::size_t>(r)] = {
+            static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(c)};
+      }
+      if (bad == count) {
+        off = size;
+        continue;
+      }
+      mesh.triangles.clear();  // not the simple layout after all: take the general path
+    }
     for (std::uint64_t r = 0; r < e.count; ++r) {
       if (simple) {
         if (cs > size - off) need(cs, "face " + std::to_string(r));
