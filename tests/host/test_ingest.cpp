@@ -254,3 +254,39 @@ TEST(Ingest, PlyWriterRoundTrips) {
 
 }  // namespace
 }  // namespace dentmark::ingest
+
+namespace dentmark::ingest {
+namespace {
+
+// The common scanner layout (only triangles, one list property) takes a parallel path;
+// it must read the same and reject the same.
+std::string triangle_block_ply(int bad_index) {
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 3\nproperty list uchar uint vertex_indices\nend_header\n";
+  for (auto& v : kV)
+    for (int a = 0; a < 3; ++a) put<float>(s, v[a]);
+  for (auto t : {std::array<int, 3>{0, 1, 2}, {0, 2, 3}, {1, bad_index, 2}}) {
+    put<std::uint8_t>(s, 3);
+    for (int i : t) put<std::uint32_t>(s, static_cast<std::uint32_t>(i));
+  }
+  return s;
+}
+
+TEST(Ingest, BinaryTriangleBlockFastPath) {
+  expect_reference(read_mesh(write_file("w.ply", triangle_block_ply(4))));
+  const std::string bad = triangle_block_ply(5);
+  // Third face's second corner: header, 5 x 12 vertex bytes, 2 x 13 face bytes, count, corner.
+  const std::size_t at = bad.find("end_header\n") + 11 + 60 + 26 + 1 + 4;
+  try {
+    read_mesh(write_file("x.ply", bad));
+    ADD_FAILURE() << "index 5 of 5 vertices accepted";
+  } catch (const IngestError& e) {
+    EXPECT_NE(std::string(e.what()).find("byte " + std::to_string(at) + ": vertex index 5 out of range"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace dentmark::ingest
