@@ -515,6 +515,29 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     for (auto& l : out.labels)
       if (l >= 0) l = old_to_new[static_cast<std::size_t>(l)];
   }
+  {  // One defect split in two candidates (by a dropout, say) is reported once: a less
+     // confident report whose centre lies inside a kept one's half-diameter joins it.
+    std::vector<std::int32_t> merged_into(out.defects.size(), -1);
+    std::vector<Finding> kept;
+    for (std::size_t i = 0; i < out.defects.size(); ++i) {
+      const auto& di = out.defects[i].defect;
+      for (std::size_t j = 0; j < kept.size(); ++j) {
+        const auto& dj = kept[j].defect;
+        if ((di.height < 0) == (dj.height < 0) &&
+            (di.position - dj.position).norm() < 0.5 * std::max(di.diameter, dj.diameter)) {
+          merged_into[i] = static_cast<std::int32_t>(j);
+          break;
+        }
+      }
+      if (merged_into[i] < 0) {
+        merged_into[i] = static_cast<std::int32_t>(kept.size());
+        kept.push_back(std::move(out.defects[i]));
+      }
+    }
+    out.defects = std::move(kept);
+    for (auto& l : out.labels)
+      if (l >= 0) l = merged_into[static_cast<std::size_t>(l)];
+  }
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;
