@@ -76,6 +76,8 @@ Decoded LinkClient::request(const Message& message) {
       disconnect();
       throw LinkError(endpoint + ": bad reply: " + d.error().message());
     }
+    // The edge closes the connection after every Error it sends.
+    if (std::holds_alternative<ErrorMessage>(d.value().message)) disconnect();
     return std::move(d.value());
   }
   throw LinkError(endpoint + ": " + why + " (after " + std::to_string(attempts) + " attempts)");
