@@ -173,7 +173,6 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   const cv::Mat left = as_grey(left_in), right = as_grey(right_in);
   check_size(left, calib_.size, "left");
   check_size(right, calib_.size, "right");
-  const ImagePyramid pl(left, opt_.lk), pr(right, opt_.lk);
   const std::size_t n = reference_.size();
   const std::vector<Eigen::Vector3d> ref = reference_.points();
 
@@ -182,6 +181,20 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   std::vector<Eigen::Vector3d> xp(n);
   for (std::size_t i = 0; i < n; ++i) xp[i] = predicted * ref[i];
   const std::vector<cv::Point2f> gl = calib_.project(Cam::kLeft, xp), gr = calib_.project(Cam::kRight, xp);
+  // One pyramid per image, over the part where the features can be (LK's reach around
+  // their last and predicted positions): a tenth to a third of a 1280 x 1024 frame.
+  auto region = [&](const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b) {
+    const int reach = opt_.lk.window * (1 << opt_.lk.levels) / 2 + 2 * opt_.lk.window + 16;
+    float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
+    for (const auto* v : {&a, &b})
+      for (const auto& p : *v)
+        if (std::isfinite(p.x) && std::isfinite(p.y))
+          x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+    if (x1 < x0) return cv::Rect();
+    return cv::Rect(cv::Point(static_cast<int>(x0) - reach, static_cast<int>(y0) - reach),
+                    cv::Point(static_cast<int>(x1) + reach + 1, static_cast<int>(y1) + reach + 1));
+  };
+  const ImagePyramid pl(left, opt_.lk, region(gl, left_)), pr(right, opt_.lk, region(gr, right_));
 
   std::vector<Eigen::Vector3d> current(n, Eigen::Vector3d::Zero());
   std::vector<bool> valid(n, false);
