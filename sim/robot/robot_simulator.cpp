@@ -297,6 +297,7 @@ void RobotSimulator::on_command_block() {
       stop_motion(now, rl::fault::kAborted, rl::State::kStopped);
       break;
     case rl::Command::kSpray: {
+      if (stopping_) return reject(rl::fault::kBadCommand);
       const double duration = regs[rl::cmd::kSprayMs] * 1e-3;
       if (duration <= 0.0) return reject(rl::fault::kBadCommand);
       if (state_ == rl::State::kMoving) return reject(rl::fault::kBadCommand);
@@ -307,6 +308,7 @@ void RobotSimulator::on_command_block() {
       break;
     }
     case rl::Command::kMove: {
+      if (stopping_) return reject(rl::fault::kBadCommand);  // still braking from the last stop
       const Transform target = rl::decode_pose(std::span<const std::uint16_t>(regs + rl::cmd::kTarget, 6));
       const float speed_reg =
           rl::get_f32(std::span<const std::uint16_t>(regs + rl::cmd::kSpeed, 2), rl::kWordOrder);
@@ -336,6 +338,7 @@ void RobotSimulator::on_command_block() {
         a = std::min(a, config_.max_angular_acceleration / angle);
       }
       profile_ = TrapezoidProfile(1.0, v, a);
+      accel_ = a;
       move_start_ = now;
       state_ = rl::State::kMoving;
       record(now, true);
@@ -348,8 +351,30 @@ void RobotSimulator::on_command_block() {
   publish_status(now);
 }
 
+void RobotSimulator::move_along_path(double u) {
+  nominal_.translation() = move_from_.translation() + u * (move_to_.translation() - move_from_.translation());
+  const Eigen::Quaterniond q0(move_from_.linear()), q1(move_to_.linear());
+  nominal_.linear() = q0.slerp(u, q1).toRotationMatrix();
+  noise_ = noise_from_ + u * (noise_to_ - noise_from_);
+}
+
 // Advances motion, spray and the heartbeat watchdog to 'now' (mutex_ held).
 void RobotSimulator::step(double now) {
+  if (stopping_) {
+    // Braking along the path at the move's acceleration: speed and acceleration stay bounded.
+    const double t_stop = stop_v0_ / accel_;
+    const double dt = std::min(now - stop_start_, t_stop);
+    move_along_path(stop_u0_ + stop_v0_ * dt - 0.5 * accel_ * dt * dt);
+    speed_ = (stop_v0_ - accel_ * dt) * path_length_;
+    if (now - stop_start_ >= t_stop) {
+      speed_ = 0.0;
+      stopping_ = false;
+      record(now, true);
+    } else {
+      record(now, false);
+    }
+    return;
+  }
   if ((state_ == rl::State::kMoving || state_ == rl::State::kSpraying) &&
       now - heartbeat_time_ > config_.heartbeat_timeout) {
     // The robot program's watchdog: the edge stopped talking, so stop and close the sprayer.
@@ -358,12 +383,7 @@ void RobotSimulator::step(double now) {
   }
   if (state_ == rl::State::kMoving) {
     const double t = now - move_start_;
-    const double u = profile_.position(t);
-    nominal_.translation() =
-        move_from_.translation() + u * (move_to_.translation() - move_from_.translation());
-    const Eigen::Quaterniond q0(move_from_.linear()), q1(move_to_.linear());
-    nominal_.linear() = q0.slerp(u, q1).toRotationMatrix();
-    noise_ = noise_from_ + u * (noise_to_ - noise_from_);
+    move_along_path(profile_.position(t));
     speed_ = profile_.speed(t) * path_length_;
     if (t >= profile_.duration()) {
       nominal_ = move_to_;
@@ -380,8 +400,18 @@ void RobotSimulator::step(double now) {
 }
 
 void RobotSimulator::stop_motion(double now, std::uint16_t fault_bits, rl::State state) {
-  // Stops where the tool is (a simplification: a real controller decelerates).
-  speed_ = 0.0;
+  // The sprayer closes and the state changes at once; a moving tool brakes along its
+  // path at the move's acceleration (step() carries that out).
+  if (stopping_) step(now);  // already braking (a second stop): bring the speed up to date
+  if (state_ == rl::State::kMoving) {
+    const double t = now - move_start_;
+    stop_u0_ = profile_.position(t);
+    stop_v0_ = profile_.speed(t);
+    stop_start_ = now;
+    stopping_ = stop_v0_ > 0.0;
+    move_along_path(stop_u0_);
+  }
+  if (!stopping_) speed_ = 0.0;
   state_ = state;
   faults_ = static_cast<std::uint16_t>(faults_ | fault_bits);
   spray_end_ = now;

@@ -166,13 +166,30 @@ TEST_F(ModbusRobotTcp, RobotStopsWhenHeartbeatsStop) {
 
 TEST_F(ModbusRobotTcp, AbortStopsTheMove) {
   const auto seq = robot->move_to(pose(0.4, 0.5, 0.5), 0.05);
-  clock.sleep_for(1.0);
+  clock.sleep_for(0.5);
+  robot->heartbeat();  // within the 1 s heartbeat timeout: it is the abort that stops it
+  clock.sleep_for(0.5);
   robot->abort();
   const auto s = robot->status();
   EXPECT_EQ(s.state, rl::State::kStopped);
   EXPECT_EQ(s.faults, rl::fault::kAborted);
   EXPECT_NE(s.sequence, seq);
   EXPECT_LT(s.T_base_tool.translation().y(), 0.1);
+  clock.sleep_for(0.5);
+  // It braked within the acceleration limit (0.05 m/s to 0 at 1 m/s²: 0.05 s, 1.25 mm) and stays put.
+  const auto traj = sim->trajectory();
+  for (std::size_t i = 1; i < traj.size(); ++i) {
+    const double dt = traj[i].time - traj[i - 1].time;
+    if (dt > 0.005) {
+      EXPECT_LE(std::abs(traj[i].speed - traj[i - 1].speed) / dt, 1.0 + 1e-6)
+          << "at " << traj[i].time << " prev " << traj[i - 1].time << " " << traj[i - 1].speed << " now "
+          << traj[i].speed;
+    }
+  }
+  EXPECT_EQ(traj.back().speed, 0.0);
+  const auto braked = robot->status();
+  EXPECT_EQ(braked.tool_speed, 0.0f);
+  EXPECT_LT((braked.T_base_tool.translation() - s.T_base_tool.translation()).norm(), 0.0013 + 1e-4);
 }
 
 TEST_F(ModbusRobotTcp, ExceptionReplyIsReportedWithoutDroppingTheLink) {

@@ -111,6 +111,7 @@ class RobotSimulator {
   void on_command_block();
   void step(double now);
   void stop_motion(double now, std::uint16_t fault_bits, robot_link::State state);
+  void move_along_path(double u);
   void record(double now, bool force);
   void publish_status(double now);
   Transform true_from_nominal(const Transform& nominal, const Eigen::Vector3d& noise) const;
@@ -144,6 +145,9 @@ class RobotSimulator {
   Transform move_from_, move_to_;
   Eigen::Vector3d noise_from_ = Eigen::Vector3d::Zero(), noise_to_ = Eigen::Vector3d::Zero();
   TrapezoidProfile profile_;  // over the normalised path parameter u in [0, 1]
+  double accel_ = 1.0;        // profile_'s acceleration, in u/s²
+  bool stopping_ = false;     // decelerating along the path after abort / heartbeat loss
+  double stop_start_ = 0.0, stop_u0_ = 0.0, stop_v0_ = 0.0;
   double path_length_ = 0.0;  // m
   double move_start_ = 0.0;
   double spray_end_ = 0.0;
