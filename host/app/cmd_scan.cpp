@@ -19,6 +19,12 @@
 namespace dentmark::cli {
 namespace {
 
+nlohmann::json rows_of(const Eigen::Isometry3d& t) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({t(r, 0), t(r, 1), t(r, 2), t(r, 3)});
+  return rows;
+}
+
 struct DetectArgs {
   std::string scan, units = "m", config, out, json, report, ply;
   bool verbose = false;
@@ -156,10 +162,16 @@ int run_synth(SynthArgs a) {
     truth.defects.push_back(l);
   }
   for (const auto& f : scan.features) truth.features.push_back({f.name, f.points, f.radius});
-  const nlohmann::json meta = {
-      {"seed", a.options.seed},         {"spacing", a.options.spacing},
-      {"noise", a.options.noise},       {"outlier_fraction", a.options.outlier_fraction},
-      {"dropouts", a.options.dropouts}, {"shuffled", a.options.shuffle}};
+  const nlohmann::json meta = {{"seed", a.options.seed},
+                               {"spacing", a.options.spacing},
+                               {"noise", a.options.noise},
+                               {"outlier_fraction", a.options.outlier_fraction},
+                               {"dropouts", a.options.dropouts},
+                               {"shuffled", a.options.shuffle},
+                               // Where the scanned door sits in 'sls' (rows of the 4x4 T_sls_panel) and its
+                               // size: the station twin places the same door in the tracking cameras' view.
+                               {"T_sls_panel", rows_of(scan.T_sls_panel)},
+                               {"panel_size", {a.options.shape.width, a.options.shape.height}}};
   try {
     ingest::write_ply(a.out, mesh);
     if (!a.truth.empty()) report::write_text_file(a.truth, report::truth_to_json(truth, meta).dump(1) + "\n");
