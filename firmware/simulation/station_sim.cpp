@@ -1,41 +1,27 @@
 #include "dentmark/firmware/simulation/station_sim.h"
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <mutex>
 #include <numbers>
 #include <random>
+#include <thread>
 
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/board/board_config.h"
+#include "dentmark/firmware/hal/gpio/sim_gpio.h"
 #include "dentmark/firmware/hal/robot/modbus_robot.h"
+#include "dentmark/firmware/hal/safety/safety_supervisor.h"
 #include "dentmark/firmware/station/job_runner.h"
+#include "dentmark/firmware/station/supervised_safety.h"
 #include "dentmark/firmware/station/tracking_motion_source.h"
 #include "dentmark/sim/robot/robot_simulator.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
 namespace dentmark::simulation {
 namespace {
-
-// The sprayer valve and e-stop of the simulated cell: the valve's state is only
-// recorded; the e-stop is never pressed in these scenarios.
-class SimSafety final : public station::SafetyIo {
- public:
-  explicit SimSafety(clock::Clock& clock) : clock_(clock) {}
-  bool estop_active() override { return false; }
-  void spray(double duration) override {
-    open_ = true;
-    clock_.sleep_for(duration);
-    open_ = false;
-  }
-  void valve_off() noexcept override { open_ = false; }
-  bool open() const { return open_; }
-
- private:
-  clock::Clock& clock_;
-  bool open_ = false;
-};
 
 // The panel's true motion, as a perfect tracker would report it.
 class TruthMotion final : public station::MotionSource {
@@ -146,7 +132,12 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   station::MotionSource& motion = tracking ? static_cast<station::MotionSource&>(*tracking)
                                            : static_cast<station::MotionSource&>(truth_motion);
 
-  SimSafety safety(clock);
+  // The sprayer valve and e-stop through the hal's safety supervisor on simulated lines.
+  const board::GpioLine valve_line{"sprayer-valve", false}, estop_line{"estop", true};
+  hal::SimGpio gpio({valve_line.name, estop_line.name}, clock);
+  hal::SafetySupervisor supervisor(gpio.request_output(valve_line, false), gpio.request_input(estop_line),
+                                   clock);
+  station::SupervisedSafety safety(supervisor, clock);
   station::JobConfig job;
   job.planner.chain.T_base_camL = cell.T_base_camL_est;
   job.planner.chain.T_camL_sls = cell.T_camL_sls_est;
@@ -158,11 +149,22 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   station::JobRunner runner(robot, safety, motion, clock, job);
 
   clock.sleep_until(cell.t_mark);
+  std::thread estop;
+  std::atomic<bool> done{false};
+  if (sim.estop_after >= 0.0)
+    estop = std::thread([&] {
+      const double at = cell.t_mark + sim.estop_after;
+      while (!done && clock.now() < at) clock.sleep_for(0.005);
+      if (!done) gpio.drive(estop_line.name, true);
+    });
   ScenarioResult result;
   result.options = scenario;
   result.defects_sent = static_cast<int>(list.defects.size());
   result.report = runner.run(list, 0.0);
   result.sim_seconds = clock.now();
+  done = true;
+  if (estop.joinable()) estop.join();
+  result.valve_open_at_end = gpio.level(valve_line.name);
   if (tracking) {
     tracking->stop();
     result.frames_tracked = tracking->frames_tracked();
@@ -170,6 +172,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   }
   robot.disconnect();
   robot_sim->stop();
+  for (const hal::EdgeRecord& e : gpio.edges())
+    if (e.line == valve_line.name && e.active) ++result.valve_pulses;
 
   // Score each spray against the true defect nearest to what was sent for it.
   const auto sprays = robot_sim->sprays();

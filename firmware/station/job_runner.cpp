@@ -69,6 +69,7 @@ bool JobRunner::tracking_ok() {
 }
 
 void JobRunner::check_interlocks() {
+  safety_.kick();
   if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop active"};
   if (cancelled_) throw JobAbort{MarkReason::kAborted, "job cancelled"};
 }
@@ -139,7 +140,7 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
 
   const double duration = config_.planner.spray_duration;
   const std::uint16_t seq = robot_.spray(duration);
-  safety_.spray(duration);
+  if (!safety_.spray(duration)) throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};
   const double deadline = clock_.now() + duration + config_.move_timeout_margin;
   for (;;) {
     check_interlocks();
@@ -198,6 +199,13 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
 
   state_ = protocol::EdgeState::kMarking;
   bool safe = false;
+  if (!safety_.arm()) {
+    log::error("job " + std::to_string(list.job_id) + ": e-stop pressed; nothing marked");
+    fail_remaining(MarkOutcome::kFailed, MarkReason::kEmergencyStop);
+    safety_.valve_off();
+    state_ = protocol::EdgeState::kSafe;
+    return report;
+  }
   try {
     robot_.connect();
     robot_.heartbeat();

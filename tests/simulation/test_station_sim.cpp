@@ -53,6 +53,7 @@ TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
     sim.truth_motion = true;
     const ScenarioResult r = run_scenario(s, sim, d.list, d.truth);
     EXPECT_EQ(r.marked, 4) << pos << yaw_deg;
+    EXPECT_EQ(r.valve_pulses, 4) << "one valve pulse per mark, through the safety supervisor";
     ASSERT_EQ(r.errors.size(), 4u);
     EXPECT_EQ(r.unmatched_marks, 0);
     // Errors come only from the simulated calibration (0.3 mm, 0.2 mrad) and robot
@@ -85,6 +86,28 @@ TEST(StationSim, ErrorsReflectACalibrationOffset) {
   const ScenarioResult off = run_scenario(s, sim, d.list, d.truth);
   ASSERT_EQ(off.errors.size(), 3u);
   EXPECT_GT(off.errors.front().error_base.norm(), 2e-3);
+}
+
+TEST(StationSim, EstopStopsTheJobWithTheValveClosed) {
+  const Door d = door(4, 5);
+  ScenarioOptions s;
+  s.position = 'A';
+  SimulationOptions sim;
+  sim.clock_rate = 8.0;
+  sim.truth_motion = true;
+  sim.estop_after = 3.0;  // while marking the first or second defect
+  const ScenarioResult r = run_scenario(s, sim, d.list, d.truth);
+  EXPECT_LT(r.marked, 5);
+  EXPECT_FALSE(r.valve_open_at_end);
+  int estopped = 0;
+  for (const auto& m : r.report.marks)
+    if (m.outcome == protocol::MarkOutcome::kFailed && m.reason == protocol::MarkReason::kEmergencyStop)
+      ++estopped;
+  EXPECT_GE(estopped, 1);
+  EXPECT_EQ(static_cast<int>(r.report.marks.size()), 5);
+  // No spray after the e-stop.
+  for (const auto& e : r.errors)
+    EXPECT_LT(e.t_spray, sim.estop_after + 0.05);  // position A: marking starts at 0
 }
 
 }  // namespace

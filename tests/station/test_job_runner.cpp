@@ -88,11 +88,12 @@ class MockSafety final : public SafetyIo {
  public:
   explicit MockSafety(clock::Clock& clock) : clock_(clock) {}
   bool estop_active() override { return estop_after >= 0 && clock_.now() >= estop_after; }
-  void spray(double duration) override {
+  bool spray(double duration) override {
     valve_open = true;
     pulses++;
     clock_.sleep_for(duration);
     valve_open = false;
+    return true;
   }
   void valve_off() noexcept override {
     valve_open = false;

@@ -42,6 +42,8 @@ struct ScenarioResult {
   std::vector<MarkError> errors;  // one per spray matched to a true defect
   int defects_sent = 0;
   int marked = 0;
+  bool valve_open_at_end = false;
+  int valve_pulses = 0;     // times the sprayer valve line went active (simulated GPIO)
   int unmatched_marks = 0;  // sprays with no true defect within 10 mm (false detections)
   Eigen::Vector3d mean_abs = Eigen::Vector3d::Zero();  // mean |e_x|, |e_y|, |e_z|, m
   Eigen::Vector3d max_abs = Eigen::Vector3d::Zero();
@@ -55,6 +57,8 @@ struct SimulationOptions {
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
   bool truth_motion = false;
+  // Press the e-stop this many seconds after marking starts (< 0: never).
+  double estop_after = -1.0;
 };
 
 // Runs one scenario. Throws std::runtime_error when the simulation itself cannot run

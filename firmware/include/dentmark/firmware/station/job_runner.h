@@ -24,8 +24,14 @@ class SafetyIo {
  public:
   virtual ~SafetyIo() = default;
   virtual bool estop_active() = 0;
-  // Opens the sprayer valve for 'duration' seconds of clock time, then closes it.
-  virtual void spray(double duration) = 0;
+  // Clears latched safe states at the start of a job (the operator's go-ahead);
+  // false when that is not allowed (e-stop pressed).
+  virtual bool arm() { return !estop_active(); }
+  // Called every turn of the control loop (software watchdog).
+  virtual void kick() {}
+  // Opens the sprayer valve for 'duration' seconds of clock time, then closes it;
+  // false when the valve was refused (latched safe).
+  virtual bool spray(double duration) = 0;
   // Closes the valve (idempotent, never throws).
   virtual void valve_off() noexcept = 0;
 };
