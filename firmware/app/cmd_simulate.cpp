@@ -25,7 +25,7 @@ struct SimulateOptions {
   std::string defects_file;  // .dml from `dentmark detect` (default: the truth itself)
   std::string truth_file;    // truth.json from `dentmark synth scan`
   std::vector<std::string> scenarios{"all"};
-  double rate = 4.0;
+  double rate = 1.0;
   int width = 1280, height = 1024;
   double focal = 1740.0;
   double fps = 10.0;

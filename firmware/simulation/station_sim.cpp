@@ -102,7 +102,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       const Transform tip = robot_sim->true_pose();
       stereo::Occluder arm;
       arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
-      arm.b = T_camL_base * Eigen::Vector3d(-0.3, -0.9, 0.2);
+      arm.b = T_camL_base *
+              Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line, like a floor-mounted robot
       arm.radius = 0.04;
       c.occluder = arm;
     }

@@ -32,8 +32,10 @@ Workcell make_workcell(const ScenarioOptions& o, const Transform& T_sls_scanpane
   cell.motion.speed = o.line_speed;
   cell.motion.vibration = o.vibration;
   cell.motion.direction = yaw * Eigen::Vector3d::UnitX();
-  // B, the middle of the run, is centred where the two views overlap.
-  const Eigen::Vector3d centre_B(0.5 * o.baseline, 0.1, o.distance);
+  // The door travels from A (scan) past C while the last defects are marked, about
+  // 0.9 m; B sits left of where the two views overlap so that the whole run, not just
+  // A..C, stays in both views as long as it can.
+  const Eigen::Vector3d centre_B(0.5 * o.baseline - 0.17, 0.1, o.distance);
   Transform pose0 = Transform::Identity();
   pose0.linear() = yaw;
   pose0.translation() = centre_B - o.position_spacing * cell.motion.direction;

@@ -81,17 +81,30 @@ Transform TrackingMotionSource::predict(double t) {
   std::lock_guard lock(mutex_);
   if (history_.empty()) return latest_ ? latest_->M_camL : Transform::Identity();
   const MotionEstimate& last = history_.back();
-  // Velocity over a baseline of about a second: the filtered motion is smooth, and a
-  // longer baseline keeps pixel noise out of the extrapolation.
-  const MotionEstimate* base = nullptr;
-  for (const MotionEstimate& e : history_)
-    if (last.t - e.t >= 0.3 && last.t - e.t <= 1.5) {
-      base = &e;
-      break;
-    }
-  if (!base) return last.M_camL;
-  // Before the history, interpolate between its two ends.
-  return extrapolate_motion(base->t, base->M_camL, last.t, last.M_camL, t);
+  // Least-squares line through the recent motions, each as the small rigid motion
+  // D_i = M_i · M_last⁻¹ (rotation vector, translation) against time: the intercept
+  // smooths the newest estimate and the slope is the velocity, both with far less
+  // noise than a two-point difference. The window is short enough (kWindow) that a
+  // line stop shows within a fraction of a second.
+  constexpr double kWindow = 1.5;  // s
+  Eigen::Matrix<double, 6, 1> sy = Eigen::Matrix<double, 6, 1>::Zero(), sty = sy;
+  double n = 0.0, st = 0.0, stt = 0.0;
+  const Transform last_inv = last.M_camL.inverse();
+  for (const MotionEstimate& e : history_) {
+    const double dt = e.t - last.t;
+    if (dt < -kWindow) continue;
+    const Transform d = e.M_camL * last_inv;
+    Eigen::Matrix<double, 6, 1> y;
+    y << rotation_vector(d), d.translation();
+    n += 1.0, st += dt, stt += dt * dt;
+    sy += y, sty += dt * y;
+  }
+  const double det = n * stt - st * st;
+  if (n < 3.0 || det < 1e-9) return last.M_camL;
+  const Eigen::Matrix<double, 6, 1> slope = (n * sty - st * sy) / det;
+  const Eigen::Matrix<double, 6, 1> intercept = (sy - slope * st) / n;
+  const Eigen::Matrix<double, 6, 1> at = intercept + slope * (t - last.t);
+  return make_transform_rotvec(at.head<3>(), at.tail<3>()) * last.M_camL;
 }
 
 }  // namespace dentmark::station
