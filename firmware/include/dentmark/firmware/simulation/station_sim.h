@@ -52,7 +52,7 @@ struct ScenarioResult {
 };
 
 struct SimulationOptions {
-  double clock_rate = 4.0;   // simulated seconds per real second
+  double clock_rate = 1.0;   // simulated seconds per real second (the tracker must keep up)
   bool arm_occludes = true;  // render the robot's arm in the cameras' view
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
