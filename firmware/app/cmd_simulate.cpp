@@ -13,13 +13,14 @@
 #include "commands.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/dml_file.h"
+#include "dentmark/firmware/simulation/scan_truth.h"
 #include "dentmark/firmware/simulation/station_sim.h"
-#include "dentmark/sim/scan/sls_scan.h"
 
 namespace dentmark::edge {
 namespace {
 
 using simulation::ScanTruth;
+using simulation::SimulatedDoor;
 
 struct SimulateOptions {
   std::string defects_file;  // .dml from `dentmark detect` (default: the truth itself)
@@ -34,88 +35,6 @@ struct SimulateOptions {
   bool no_arm = false;
   bool truth_motion = false;
 };
-
-Eigen::Vector3d vec3(const nlohmann::json& j, const std::string& where) {
-  if (!j.is_array() || j.size() != 3) throw std::runtime_error(where + ": expected [x, y, z]");
-  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
-}
-
-// Reads the scan truth (schema dentmark.truth/1). Without the scan's panel pose the
-// door frame is placed at the defects' centroid, facing their mean normal.
-ScanTruth read_truth(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw std::runtime_error(path + ": byte " + std::to_string(e.byte) + ": not JSON");
-  }
-  ScanTruth t;
-  if (!j.contains("defects") || !j["defects"].is_array())
-    throw std::runtime_error(path + ": no 'defects' array");
-  for (std::size_t i = 0; i < j["defects"].size(); ++i) {
-    const auto& d = j["defects"][i];
-    const std::string where = path + ": defects[" + std::to_string(i) + "]";
-    simulation::TruthDefect td;
-    td.defect_class = d.value("class", "");
-    td.position = vec3(d.at("position"), where + ".position");
-    td.normal = vec3(d.at("normal"), where + ".normal").normalized();
-    td.diameter = d.value("diameter", 0.0);
-    td.height = d.value("height", 0.0);
-    t.defects.push_back(td);
-  }
-  const auto& gen = j.contains("generator") ? j["generator"] : nlohmann::json::object();
-  if (gen.contains("T_sls_panel") && gen.contains("panel_size")) {
-    Eigen::Matrix4d m;
-    for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c) m(r, c) = gen["T_sls_panel"][r][c].get<double>();
-    t.T_sls_panel.matrix() = m;
-    t.panel_width = gen["panel_size"][0].get<double>();
-    t.panel_height = gen["panel_size"][1].get<double>();
-  } else if (!t.defects.empty()) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
-    for (const auto& d : t.defects) c += d.position, n += d.normal;
-    c /= static_cast<double>(t.defects.size());
-    const Eigen::Vector3d z = n.normalized();
-    const Eigen::Vector3d x = (Eigen::Vector3d::UnitX() - z.x() * z).normalized();
-    Eigen::Matrix3d r;
-    r << x, z.cross(x), z;
-    t.T_sls_panel = Transform::Identity();
-    t.T_sls_panel.linear() = r;
-    t.T_sls_panel.translation() = c;
-    t.panel_width = t.panel_height = 0.0;
-  }
-  return t;
-}
-
-// Built-in default: a door with planted defects, perfectly detected.
-void builtin(ScanTruth& truth, protocol::DefectList& list, std::uint64_t seed) {
-  sim::scan::ScanOptions o;
-  o.seed = seed;
-  o.spacing = 0.004;  // only the truth is needed
-  o.defects = 6;
-  o.min_diameter = 0.01;
-  const sim::scan::SynthScan scan = sim::scan::synthesize_scan(o);
-  truth.T_sls_panel = scan.T_sls_panel;
-  truth.panel_width = o.shape.width;
-  truth.panel_height = o.shape.height;
-  list.job_id = seed;
-  list.panel_id = "builtin-door";
-  std::uint32_t id = 1;
-  for (const auto& d : scan.defects) {
-    truth.defects.push_back({d.defect_class, d.position, d.normal, d.diameter, d.height});
-    protocol::Defect p;
-    p.id = id++;
-    p.defect_class = d.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
-    p.position = d.position;
-    p.normal = d.normal;
-    p.diameter = d.diameter;
-    p.height = d.height;
-    p.score = 1.0;
-    list.defects.push_back(p);
-  }
-}
 
 struct Scenario {
   char position;
@@ -204,9 +123,11 @@ int run_simulate(const SimulateOptions& opt) {
     if (opt.truth_file.empty() != opt.defects_file.empty())
       throw std::runtime_error("--defects and --truth go together (neither: built-in door)");
     if (opt.truth_file.empty()) {
-      builtin(truth, list, opt.seed);
+      SimulatedDoor door = simulation::simulated_door(opt.seed, 6, 0.004);
+      truth = std::move(door.truth);
+      list = std::move(door.list);
     } else {
-      truth = read_truth(opt.truth_file);
+      truth = simulation::read_scan_truth(opt.truth_file);
       list = protocol::read_dml(opt.defects_file);
     }
   } catch (const std::exception& e) {

@@ -233,9 +233,9 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
           break;
         }
       }
-      std::vector<plan::DefectToMark> todo;
-      for (const Target& t : remaining) todo.push_back({t.id, t.T_sls_v});
-      const auto plan = plan::plan_marks(todo, tip_, clock_.now(), since_scan, config_.planner);
+      std::vector<plan::DefectToMark> to_plan;
+      for (const Target& t : remaining) to_plan.push_back({t.id, t.T_sls_v});
+      const auto plan = plan::plan_marks(to_plan, tip_, clock_.now(), since_scan, config_.planner);
       if (plan.empty() || !plan.front().reachable) {
         fail_remaining(MarkOutcome::kSkipped, MarkReason::kOutOfReach);
         break;

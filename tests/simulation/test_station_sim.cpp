@@ -5,45 +5,18 @@
 
 #include <numbers>
 
+#include "dentmark/firmware/simulation/scan_truth.h"
 #include "dentmark/firmware/simulation/station_sim.h"
-#include "dentmark/sim/scan/sls_scan.h"
 
 namespace dentmark::simulation {
 namespace {
 
-struct Door {
-  ScanTruth truth;
-  protocol::DefectList list;
-};
-
-// A scanned door's truth, sent as a perfectly detected defect list.
-Door door(std::uint64_t seed, int defects) {
-  sim::scan::ScanOptions o;
-  o.seed = seed;
-  o.spacing = 0.006;
-  o.defects = defects;
-  o.min_diameter = 0.01;
-  const auto scan = sim::scan::synthesize_scan(o);
-  Door d;
-  d.truth.T_sls_panel = scan.T_sls_panel;
-  d.truth.panel_width = o.shape.width;
-  d.truth.panel_height = o.shape.height;
-  d.list.job_id = seed;
-  std::uint32_t id = 1;
-  for (const auto& t : scan.defects) {
-    d.truth.defects.push_back({t.defect_class, t.position, t.normal, t.diameter, t.height});
-    protocol::Defect p;
-    p.id = id++;
-    p.defect_class = t.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
-    p.position = t.position;
-    p.normal = t.normal;
-    d.list.defects.push_back(p);
-  }
-  return d;
+SimulatedDoor door(std::uint64_t seed, int defects) {
+  return simulated_door(seed, defects);
 }
 
 TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
-  const Door d = door(3, 4);
+  const SimulatedDoor d = door(3, 4);
   for (auto [pos, yaw_deg] : {std::pair{'B', 10.0}, std::pair{'C', -15.0}}) {
     ScenarioOptions s;
     s.position = pos;
@@ -68,7 +41,7 @@ TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
 TEST(StationSim, ErrorsReflectACalibrationOffset) {
   // With perfect calibrations and robot, the twin must mark almost exactly; a 5 mm
   // calibration error must show up as ~5 mm: the scoring can fail.
-  const Door d = door(5, 3);
+  const SimulatedDoor d = door(5, 3);
   ScenarioOptions s;
   s.position = 'A';
   s.calibration_translation = 0.0;
@@ -89,7 +62,7 @@ TEST(StationSim, ErrorsReflectACalibrationOffset) {
 }
 
 TEST(StationSim, EstopStopsTheJobWithTheValveClosed) {
-  const Door d = door(4, 5);
+  const SimulatedDoor d = door(4, 5);
   ScenarioOptions s;
   s.position = 'A';
   SimulationOptions sim;
