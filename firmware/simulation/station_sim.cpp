@@ -1,5 +1,6 @@
 #include "dentmark/firmware/simulation/station_sim.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -73,12 +74,15 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
   robot_cfg.repeatability = scenario.robot_repeatability;
   robot_cfg.seed = static_cast<std::uint32_t>(scenario.seed);
+  robot_cfg.heartbeat_timeout = 0.5 * std::max(1.0, sim.clock_rate);
   auto robot_sim = sim::RobotSimulator::serve_tcp(robot_cfg, clock);
   board::ModbusConfig modbus;
   modbus.transport = board::ModbusTransport::kTcp;
   modbus.host = "127.0.0.1";
   modbus.port = robot_sim->port();
-  modbus.timeout = 0.5;
+  // Socket timeouts and the heartbeat watchdog are real-time budgets of the link (and
+  // of an emulated CPU under qemu); at a fast clock they are scaled to stay that long.
+  modbus.timeout = 0.5 * std::max(1.0, sim.clock_rate);
   hal::ModbusRobot robot(modbus, clock);
   robot.connect();
 
@@ -137,7 +141,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   const board::GpioLine valve_line{"sprayer-valve", false}, estop_line{"estop", true};
   hal::SimGpio gpio({valve_line.name, estop_line.name}, clock);
   hal::SafetySupervisor supervisor(gpio.request_output(valve_line, false), gpio.request_input(estop_line),
-                                   clock);
+                                   clock, hal::SafetyOptions{0.2 * std::max(1.0, sim.clock_rate), 0.002});
   station::SupervisedSafety safety(supervisor, clock);
   station::JobConfig job;
   job.planner.chain.T_base_camL = cell.T_base_camL_est;
