@@ -137,11 +137,12 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   station::MotionSource& motion = tracking ? static_cast<station::MotionSource&>(*tracking)
                                            : static_cast<station::MotionSource&>(truth_motion);
 
-  // The sprayer valve and e-stop through the hal's safety supervisor on simulated lines.
+  // The sprayer valve and e-stop through the hal's safety supervisor on simulated lines;
+  // its watchdog allows a second of real time, enough for an emulated CPU.
   const board::GpioLine valve_line{"sprayer-valve", false}, estop_line{"estop", true};
   hal::SimGpio gpio({valve_line.name, estop_line.name}, clock);
   hal::SafetySupervisor supervisor(gpio.request_output(valve_line, false), gpio.request_input(estop_line),
-                                   clock, hal::SafetyOptions{0.2 * std::max(1.0, sim.clock_rate), 0.002});
+                                   clock, hal::SafetyOptions{std::max(1.0, sim.clock_rate), 0.002});
   station::SupervisedSafety safety(supervisor, clock);
   station::JobConfig job;
   job.planner.chain.T_base_camL = cell.T_base_camL_est;

@@ -8,6 +8,14 @@
 #include "dentmark/firmware/simulation/scan_truth.h"
 #include "dentmark/firmware/simulation/station_sim.h"
 
+// The twin's threads run on a scaled real-time clock; an emulated CPU (qemu-user) is
+// too slow and too uneven for those timings to mean anything.
+#ifdef DENTMARK_UNDER_EMULATION
+#define SKIP_UNDER_EMULATION() GTEST_SKIP() << "real-time-scaled system test; runs natively"
+#else
+#define SKIP_UNDER_EMULATION() (void)0
+#endif
+
 namespace dentmark::simulation {
 namespace {
 
@@ -16,6 +24,7 @@ SimulatedDoor door(std::uint64_t seed, int defects) {
 }
 
 TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
+  SKIP_UNDER_EMULATION();
   const SimulatedDoor d = door(3, 4);
   for (auto [pos, yaw_deg] : {std::pair{'B', 10.0}, std::pair{'C', -15.0}}) {
     ScenarioOptions s;
@@ -39,6 +48,7 @@ TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
 }
 
 TEST(StationSim, ErrorsReflectACalibrationOffset) {
+  SKIP_UNDER_EMULATION();
   // With perfect calibrations and robot, the twin must mark almost exactly; a 5 mm
   // calibration error must show up as ~5 mm: the scoring can fail.
   const SimulatedDoor d = door(5, 3);
@@ -62,6 +72,7 @@ TEST(StationSim, ErrorsReflectACalibrationOffset) {
 }
 
 TEST(StationSim, EstopStopsTheJobWithTheValveClosed) {
+  SKIP_UNDER_EMULATION();
   const SimulatedDoor d = door(4, 5);
   ScenarioOptions s;
   s.position = 'A';
