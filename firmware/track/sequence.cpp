@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "dentmark/firmware/track/track_error.h"
+#include "matrix_node.h"
 
 namespace dentmark::track {
 namespace fs = std::filesystem;
@@ -94,6 +95,7 @@ std::vector<cv::Point2f> load_seeds(const fs::path& path, cv::Size size) {
   }
   const cv::FileNode node = fs["seeds_right"];
   if (node.empty() || node.isNone()) throw TrackError(file + ": field seeds_right is missing");
+  detail::check_matrix_node(node, file, "seeds_right", 2 * 4096);
   cv::Mat m;
   try {
     node >> m;

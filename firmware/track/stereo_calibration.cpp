@@ -6,6 +6,7 @@
 #include <opencv2/core/eigen.hpp>
 
 #include "dentmark/firmware/track/track_error.h"
+#include "matrix_node.h"
 
 namespace dentmark::track {
 namespace {
@@ -13,6 +14,7 @@ namespace {
 cv::Mat read_matrix(const cv::FileStorage& fs, const std::string& file, const char* name) {
   const cv::FileNode node = fs[name];
   if (node.empty() || node.isNone()) throw TrackError(file + ": field " + name + " is missing");
+  detail::check_matrix_node(node, file, name, 64);
   cv::Mat m;
   try {
     node >> m;
