@@ -14,6 +14,7 @@
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
 #include "dentmark/host/report/pictures.h"
+#include "dentmark/host/report/scan_truth.h"
 #include "dentmark/sim/scan/sls_scan.h"
 
 namespace dentmark::cli {
@@ -150,18 +151,7 @@ int run_synth(SynthArgs a) {
   ingest::Mesh mesh;
   mesh.vertices = std::move(scan.vertices);
   mesh.triangles = std::move(scan.triangles);
-  report::TruthFile truth;
-  truth.panel_area = scan.panel_area;
-  for (const auto& d : scan.defects) {
-    report::LabelledDefect l;
-    l.defect_class = d.defect_class;
-    l.defect.position = d.position;
-    l.defect.normal = d.normal;
-    l.defect.diameter = d.diameter;
-    l.defect.height = d.height;
-    truth.defects.push_back(l);
-  }
-  for (const auto& f : scan.features) truth.features.push_back({f.name, f.points, f.radius});
+  const report::TruthFile truth = report::truth_from_scan(scan);
   const nlohmann::json meta = {{"seed", a.options.seed},
                                {"spacing", a.options.spacing},
                                {"noise", a.options.noise},

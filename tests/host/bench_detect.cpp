@@ -13,6 +13,7 @@
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
+#include "dentmark/host/report/scan_truth.h"
 #include "dentmark/sim/scan/sls_scan.h"
 
 namespace {
@@ -94,17 +95,7 @@ void BM_QualityOverSeeds(benchmark::State& state) {
       mesh.vertices = std::move(scan.vertices);
       mesh.triangles = std::move(scan.triangles);
       const auto det = detect::detect(mesh, detect::DetectConfig{});
-      report::TruthFile truth;
-      truth.panel_area = scan.panel_area;
-      for (const auto& d : scan.defects) {
-        report::LabelledDefect l;
-        l.defect.position = d.position;
-        l.defect.normal = d.normal;
-        l.defect.diameter = d.diameter;
-        l.defect.height = d.height;
-        truth.defects.push_back(l);
-      }
-      for (const auto& f : scan.features) truth.features.push_back({f.name, f.points, f.radius});
+      const report::TruthFile truth = report::truth_from_scan(scan);
       report::DefectsFile found;
       for (const auto& f : det.defects) found.defects.push_back({"", f.defect});
       total.add(report::evaluate(truth, found));

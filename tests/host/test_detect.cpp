@@ -4,6 +4,7 @@
 
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/report/evaluate.h"
+#include "dentmark/host/report/scan_truth.h"
 #include "dentmark/sim/scan/sls_scan.h"
 
 namespace dentmark {
@@ -21,18 +22,7 @@ ScanRun run(const sim::scan::ScanOptions& o) {
   mesh.triangles = scan.triangles;
   ScanRun r;
   r.det = detect::detect(mesh, detect::DetectConfig{});
-  report::TruthFile truth;
-  truth.panel_area = scan.panel_area;
-  for (const auto& d : scan.defects) {
-    report::LabelledDefect l;
-    l.defect_class = d.defect_class;
-    l.defect.position = d.position;
-    l.defect.normal = d.normal;
-    l.defect.diameter = d.diameter;
-    l.defect.height = d.height;
-    truth.defects.push_back(l);
-  }
-  for (const auto& f : scan.features) truth.features.push_back({f.name, f.points, f.radius});
+  const report::TruthFile truth = report::truth_from_scan(scan);
   report::DefectsFile found;
   for (const auto& f : r.det.defects) found.defects.push_back({"", f.defect});
   r.eval = report::evaluate(truth, found);
