@@ -108,26 +108,13 @@ double load_scalar(const char* p, Scalar s, bool swap) {
   return 0.0;
 }
 
+// An index or count as stored; any scalar type, but a value that is not a whole
+// number in range (NaN, 1e30 in a float list) comes back as -1 and is rejected by the
+// caller instead of being cast (which would be undefined behaviour).
 std::int64_t load_index(const char* p, Scalar s, bool swap) {
-  switch (s) {
-    case Scalar::kI8:
-      return static_cast<std::int8_t>(*p);
-    case Scalar::kU8:
-      return static_cast<std::uint8_t>(*p);
-    case Scalar::kI16:
-      return load<std::int16_t>(p, swap);
-    case Scalar::kU16:
-      return load<std::uint16_t>(p, swap);
-    case Scalar::kI32:
-      return load<std::int32_t>(p, swap);
-    case Scalar::kU32:
-      return load<std::uint32_t>(p, swap);
-    case Scalar::kF32:
-      return static_cast<std::int64_t>(load<float>(p, swap));
-    case Scalar::kF64:
-      return static_cast<std::int64_t>(load<double>(p, swap));
-  }
-  return -1;
+  const double v = load_scalar(p, s, swap);
+  if (!(v >= 0.0 && v < 9.0e15) || v != std::floor(v)) return -1;
+  return static_cast<std::int64_t>(v);
 }
 
 // Adds a polygon as a fan; drops faces with < 3 corners or out-of-range indices fail.
