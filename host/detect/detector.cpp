@@ -541,9 +541,9 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;
-  // Peak: the octree build holds keys, the radix buffer and per-triangle sums
-  // (8 + 8 + 24 bytes per triangle) next to the tree itself.
-  st.working_bytes = tree.bytes() + 40 * mesh.triangles.size() + map.size() * (6 * 4 + 4 * 4 + 8);
+  // Bound on the peak: the octree build's 28-byte record per triangle next to the tree
+  // itself, and the height map with its working images.
+  st.working_bytes = tree.bytes() + 28 * mesh.triangles.size() + map.size() * (6 * 4 + 4 * 4 + 8);
   lap("classify");
   return out;
 }

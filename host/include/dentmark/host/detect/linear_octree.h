@@ -19,7 +19,7 @@ struct OctreeLeaf {
   double area = 0.0;                                 // A = Σ a_i (m²)
   Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();  // S = Σ a_i N_i (m²)
   Eigen::Vector3d sum_ac = Eigen::Vector3d::Zero();  // Σ a_i c_i, c_i the centroid (m³)
-  std::uint32_t first = 0, count = 0;                // range in LinearOctree::order
+  std::uint32_t count = 0;                           // triangles in the leaf
 };
 
 struct NodeStats {
@@ -30,11 +30,13 @@ struct NodeStats {
 
 class LinearOctree {
  public:
-  // Builds the leaves at the depth whose node edge is leaf_size (m).
+  // Builds the leaves at the depth whose node edge is leaf_size (m). Triangles may come
+  // in any order; the mesh is read twice and never sorted (see linear_octree.cpp).
   static LinearOctree build(const ingest::Mesh& mesh, double leaf_size);
 
   const std::vector<OctreeLeaf>& leaves() const { return leaves_; }
-  const std::vector<std::uint32_t>& order() const { return order_; }  // triangle ids by leaf
+  // Finest-depth key of the leaf holding triangle t (its centroid's cell).
+  std::uint64_t triangle_key(const ingest::Mesh& mesh, std::size_t t) const;
   int depth() const { return depth_; }
   double leaf_size() const { return leaf_size_; }
   const Eigen::Vector3d& origin() const { return origin_; }
@@ -45,18 +47,44 @@ class LinearOctree {
   // to the finest depth; returns the leaves reached whose own σ exceeds leaf_sigma.
   std::vector<std::uint32_t> feature_leaves(double split_sigma, double leaf_sigma) const;
   // Integer cell of a leaf key.
-  static Eigen::Vector3i decode(std::uint64_t key);
-  static std::uint64_t encode(const Eigen::Vector3i& cell);
+  static Eigen::Vector3i decode(std::uint64_t key) {
+    return {static_cast<int>(compact3(key)), static_cast<int>(compact3(key >> 1)),
+            static_cast<int>(compact3(key >> 2))};
+  }
+  static std::uint64_t encode(const Eigen::Vector3i& cell) {
+    return spread3(static_cast<std::uint64_t>(cell.x())) |
+           spread3(static_cast<std::uint64_t>(cell.y())) << 1 |
+           spread3(static_cast<std::uint64_t>(cell.z())) << 2;
+  }
 
   // Sizes for memory accounting.
   std::size_t bytes() const;
 
  private:
+  // Spreads the low 21 bits of x to every third bit, and back.
+  static std::uint64_t spread3(std::uint64_t x) {
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffull;
+    x = (x | x << 16) & 0x1f0000ff0000ffull;
+    x = (x | x << 8) & 0x100f00f00f00f00full;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+  }
+  static std::uint64_t compact3(std::uint64_t x) {
+    x &= 0x1249249249249249ull;
+    x = (x ^ (x >> 2)) & 0x10c30c30c30c30c3ull;
+    x = (x ^ (x >> 4)) & 0x100f00f00f00f00full;
+    x = (x ^ (x >> 8)) & 0x1f0000ff0000ffull;
+    x = (x ^ (x >> 16)) & 0x1f00000000ffffull;
+    x = (x ^ (x >> 32)) & 0x1fffff;
+    return x;
+  }
+
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   double leaf_size_ = 0.0;
   int depth_ = 0;
   std::vector<OctreeLeaf> leaves_;
-  std::vector<std::uint32_t> order_;
   std::vector<double> prefix_area_;  // prefix sums for O(1) node stats
   std::vector<Eigen::Vector3d> prefix_an_;
 };

@@ -1,0 +1,253 @@
+#include "leaf_sums.h"
+
+#include <sys/mman.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <new>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace dentmark::detect::detail {
+namespace {
+
+// Why not sort: scanners deliver triangles in sensor order, but a merged or re-meshed
+// scan comes in any order, and sorting 10 M keys and then gathering per-triangle sums in
+// sorted order costs two random passes over memory. Instead one pass files each
+// triangle's contribution under its coarse bucket (8^kBucketLevels cells of the octree)
+// in chains of small chunks, and each bucket, a few thousand records that fit in the
+// cache, is summed through a small hash table on the remaining key bits. Consecutive
+// triangles in the same leaf (sensor order) are merged before they are filed, so an
+// ordered scan writes a fifth of the records.
+constexpr int kBucketLevels = 5;   // 32 768 buckets: their chain tails stay in L2
+constexpr int kChunkRecords = 62;  // a chunk is ~2.2 KB
+constexpr int kPrefetch = 24;      // triangles ahead: hides the random vertex reads
+
+struct Record {         // 36 bytes: the sums of a run of triangles in one leaf
+  std::uint32_t cell;   // key bits below the bucket
+  std::uint32_t count;  // triangles
+  float area;           // Σ a_i
+  float an[3];          // Σ a_i N_i
+  float ac[3];          // Σ a_i (c_i − leaf corner): small numbers keep float precision
+};
+
+struct Chunk {
+  Chunk* next = nullptr;
+  std::uint32_t size = 0;
+  Record records[kChunkRecords];
+};
+
+// One thread's chunks: bucket chains and the storage behind them.
+class ChunkStore {
+ public:
+  explicit ChunkStore(std::size_t buckets) : head_(buckets, nullptr), tail_(buckets, nullptr) {}
+
+  Record& append(std::size_t bucket) {
+    Chunk* c = tail_[bucket];
+    if (!c || c->size == kChunkRecords) {
+      Chunk* fresh = allocate();
+      (c ? c->next : head_[bucket]) = fresh;
+      tail_[bucket] = c = fresh;
+    }
+    return c->records[c->size++];
+  }
+  const Chunk* head(std::size_t bucket) const { return head_[bucket]; }
+
+ private:
+  // Chunks come from 8 MB blocks on transparent huge pages: hundreds of MB of 4 KB page
+  // faults would otherwise cost more than the work, and they serialise the threads.
+  Chunk* allocate() {
+    if (blocks_.empty() || used_ == kBlockChunks) {
+      void* p = std::aligned_alloc(kHugePage, kBlockBytes);
+      if (!p) throw std::bad_alloc();
+      ::madvise(p, kBlockBytes, MADV_HUGEPAGE);  // a hint: plain pages if refused
+      blocks_.emplace_back(static_cast<Chunk*>(p));
+      used_ = 0;
+    }
+    return new (&blocks_.back().get()[used_++]) Chunk;
+  }
+  struct Free {
+    void operator()(Chunk* p) const { std::free(p); }
+  };
+  static constexpr std::size_t kHugePage = std::size_t{2} << 20, kBlockBytes = 4 * kHugePage;
+  static constexpr std::size_t kBlockChunks = kBlockBytes / sizeof(Chunk);
+  std::vector<Chunk*> head_, tail_;
+  std::vector<std::unique_ptr<Chunk, Free>> blocks_;
+  std::size_t used_ = 0;
+};
+
+// A run of consecutive triangles in the same leaf, summed in double until it is filed.
+struct Run {
+  std::uint64_t key = ~0ull;
+  std::uint32_t count = 0;
+  double area = 0.0;
+  Eigen::Vector3d an = Eigen::Vector3d::Zero(), ac = Eigen::Vector3d::Zero();
+  Eigen::Vector3f corner = Eigen::Vector3f::Zero();
+};
+
+void file_run(const Run& run, int low_bits, ChunkStore& store) {
+  if (run.count == 0) return;
+  Record& r = store.append(run.key >> low_bits);
+  r.cell = static_cast<std::uint32_t>(run.key & ((std::uint64_t{1} << low_bits) - 1));
+  r.count = run.count;
+  r.area = static_cast<float>(run.area);
+  for (int a = 0; a < 3; ++a)
+    r.an[a] = static_cast<float>(run.an[a]), r.ac[a] = static_cast<float>(run.ac[a]);
+}
+
+// Sums one bucket's records (from every thread's chain) into leaves, in Morton order.
+class BucketSummer {
+ public:
+  void sum(const std::vector<const Chunk*>& chains, std::uint64_t records_hint, std::uint64_t bucket,
+           int low_bits, const LeafGrid& grid, std::vector<OctreeLeaf>& out) {
+    std::size_t size = 16;
+    while (size < 2 * records_hint) size <<= 1;
+    int shift = 32;
+    for (std::size_t s = size; s > 1; s >>= 1) --shift;
+    slots_.assign(size, -1);
+    leaves_.clear();
+    for (const Chunk* c : chains)
+      for (; c; c = c->next)
+        for (std::uint32_t i = 0; i < c->size; ++i) {
+          const Record& r = c->records[i];
+          std::size_t h = static_cast<std::uint32_t>(r.cell * 0x9E3779B1u) >> shift;
+          while (slots_[h] >= 0 && cells_[static_cast<std::size_t>(slots_[h])] != r.cell)
+            h = (h + 1) & (size - 1);
+          if (slots_[h] < 0) {
+            slots_[h] = static_cast<std::int32_t>(leaves_.size());
+            leaves_.emplace_back();
+            cells_.resize(leaves_.size());
+            cells_.back() = r.cell;
+          }
+          OctreeLeaf& l = leaves_[static_cast<std::size_t>(slots_[h])];
+          l.count += r.count;
+          l.area += r.area;
+          for (int a = 0; a < 3; ++a) {
+            l.sum_an[a] += r.an[a];
+            l.sum_ac[a] += r.ac[a];
+          }
+        }
+    order_.resize(leaves_.size());
+    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = static_cast<std::uint32_t>(i);
+    std::sort(order_.begin(), order_.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return cells_[a] < cells_[b]; });
+    for (auto i : order_) {
+      OctreeLeaf& l = out.emplace_back(leaves_[i]);
+      l.key = bucket << low_bits | cells_[i];
+      l.sum_ac += l.area * grid.corner(l.key).cast<double>();
+    }
+    cells_.clear();
+  }
+
+ private:
+  std::vector<std::int32_t> slots_;
+  std::vector<OctreeLeaf> leaves_;
+  std::vector<std::uint32_t> cells_, order_;
+};
+
+int thread_count() {
+#ifdef _OPENMP
+  return std::max(1, omp_get_max_threads());
+#else
+  return 1;
+#endif
+}
+
+int thread_id() {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+
+}  // namespace
+
+std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGrid& grid) {
+  const auto& V = mesh.vertices;
+  const auto& T = mesh.triangles;
+  const std::size_t n = T.size();
+  const int bucket_levels = std::min(grid.depth, kBucketLevels);
+  const int low_bits = 3 * (grid.depth - bucket_levels);
+  const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
+  const int threads = thread_count();
+  std::vector<std::unique_ptr<ChunkStore>> stores(static_cast<std::size_t>(threads));
+
+  // Pass 1: each thread files its slice of the triangles.
+#pragma omp parallel num_threads(threads)
+  {
+    const auto t = static_cast<std::size_t>(thread_id());
+    const std::size_t b = n * t / static_cast<std::size_t>(threads),
+                      e = n * (t + 1) / static_cast<std::size_t>(threads);
+    stores[t] = std::make_unique<ChunkStore>(buckets);
+    ChunkStore& store = *stores[t];
+    Run run;
+    for (std::size_t i = b; i < e; ++i) {
+      if (i + kPrefetch < e) {
+        const auto& f = T[i + kPrefetch];
+        for (int k = 0; k < 3; ++k) __builtin_prefetch(&V[f[k]]);
+      }
+      const auto& tri = T[i];
+      const Eigen::Vector3f va = V[tri[0]], vb = V[tri[1]], vc = V[tri[2]];
+      const Eigen::Vector3f c = (va + vb + vc) * (1.0f / 3.0f);
+      // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
+      const Eigen::Vector3d an = (0.5f * (vb - va).cross(vc - va)).cast<double>();
+      const double area = an.norm();
+      const std::uint64_t key = grid.key(c);
+      if (key != run.key || run.count == ~0u) {
+        file_run(run, low_bits, store);
+        run = Run{key, 0, 0.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), grid.corner(key)};
+      }
+      run.count += 1;
+      run.area += area;
+      run.an += an;
+      run.ac += area * (c - run.corner).cast<double>();
+    }
+    file_run(run, low_bits, store);
+  }
+
+  // Pass 2: buckets in key order, split between threads by record count; each thread's
+  // leaves come out sorted and the parts are concatenated in thread order.
+  std::vector<std::uint64_t> start(buckets + 1, 0);
+  for (std::size_t k = 0; k < buckets; ++k) {
+    std::uint64_t c = 0;
+    for (const auto& s : stores)
+      for (const Chunk* ch = s->head(k); ch; ch = ch->next) c += ch->size;
+    start[k + 1] = start[k] + c;
+  }
+  const std::uint64_t records = start[buckets];
+  std::vector<std::vector<OctreeLeaf>> parts(static_cast<std::size_t>(threads));
+#pragma omp parallel num_threads(threads)
+  {
+    const auto t = static_cast<std::size_t>(thread_id());
+    const auto nt = static_cast<std::size_t>(threads);
+    const auto first_bucket = [&](std::size_t slice) {
+      return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * slice / nt) -
+                                      start.begin());
+    };
+    const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
+    auto& out = parts[t];
+    out.reserve((start[ke] - start[kb]) / 8 + 16);
+    BucketSummer summer;
+    std::vector<const Chunk*> chains(stores.size());
+    for (std::size_t k = kb; k < ke; ++k) {
+      if (start[k + 1] == start[k]) continue;
+      for (std::size_t s = 0; s < stores.size(); ++s) chains[s] = stores[s]->head(k);
+      summer.sum(chains, start[k + 1] - start[k], k, low_bits, grid, out);
+    }
+  }
+  stores.clear();
+  std::vector<OctreeLeaf> leaves;
+  std::size_t total = 0;
+  for (const auto& p : parts) total += p.size();
+  leaves.reserve(total);
+  for (auto& p : parts) leaves.insert(leaves.end(), p.begin(), p.end()), p = {};
+  return leaves;
+}
+
+}  // namespace dentmark::detect::detail

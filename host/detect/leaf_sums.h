@@ -1,0 +1,43 @@
+#pragma once
+// Per-leaf sums of the paper's eq. (1)-(2) for every occupied finest octree cell, built in
+// one pass over the triangles in whatever order they come (see leaf_sums.cpp).
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "dentmark/host/detect/linear_octree.h"
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::detect::detail {
+
+// The finest level of the octree: cells of edge 1 / inv_leaf from origin, 2^depth a side.
+struct LeafGrid {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  float inv_leaf = 1.0f;
+  int depth = 1;
+
+  // Morton key of the cell holding p (clamped into the grid).
+  std::uint64_t key(const Eigen::Vector3f& p) const {
+    const Eigen::Vector3f c = (p - origin) * inv_leaf;
+    const int cells = 1 << depth;
+    Eigen::Vector3i q;
+    for (int a = 0; a < 3; ++a) q[a] = std::clamp(static_cast<int>(c[a]), 0, cells - 1);
+    return LinearOctree::encode(q);
+  }
+  // Lower corner of the cell with this key.
+  Eigen::Vector3f corner(std::uint64_t key) const {
+    return origin + LinearOctree::decode(key).cast<float>() / inv_leaf;
+  }
+};
+
+inline Eigen::Vector3f triangle_centroid(const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t) {
+  return (m.vertices[t[0]] + m.vertices[t[1]] + m.vertices[t[2]]) * (1.0f / 3.0f);
+}
+
+// Leaves in Morton order, with A, S = Σ a_i N_i, Σ a_i c_i and the triangle count.
+std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGrid& grid);
+
+}  // namespace dentmark::detect::detail
