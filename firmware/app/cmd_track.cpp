@@ -1,4 +1,5 @@
-// `dentmark-edge track` and `dentmark-edge teach`: offline tracker tools (issue: tracker).
+// `dentmark-edge track`: offline replay through the tracker, started from seeds or a
+// taught panel model (cmd_teach.cpp).
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -16,6 +17,7 @@ namespace {
 struct TrackCliOptions {
   std::string sequence;
   std::string json;
+  std::string model;
   bool truth = false;
   bool no_filter = false;
 };
@@ -25,7 +27,9 @@ int run_track(const TrackCliOptions& o) {
     track::TrackerOptions options;
     options.filter.enabled = !o.no_filter;
     const auto start = std::chrono::steady_clock::now();
-    const track::ReplayResult result = track::replay_sequence(o.sequence, options);
+    const track::ReplayResult result = o.model.empty()
+                                           ? track::replay_sequence(o.sequence, options)
+                                           : track::replay_sequence_with_model(o.sequence, o.model, options);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!o.json.empty()) track::write_replay_json(result, o.json);
     int ok = 0;
@@ -61,6 +65,7 @@ void register_track(CLI::App& app) {
   cmd->add_option("--sequence", opt->sequence, "Sequence directory (stereo.yaml, frames.csv, seeds.yaml)")
       ->required();
   cmd->add_option("--json", opt->json, "Write per-frame motion as JSON");
+  cmd->add_option("--model", opt->model, "Acquire this taught panel model instead of using seeds.yaml");
   cmd->add_flag("--truth", opt->truth, "Compare with the directory's truth.csv and eval_points.csv");
   cmd->add_flag("--no-filter", opt->no_filter, "Report each frame's own fit (no motion filter)");
   cmd->callback([opt] { exit_code() = run_track(*opt); });

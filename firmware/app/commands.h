@@ -11,8 +11,10 @@ int& exit_code();
 
 // `dentmark-edge run --board FILE`: the daemon (also the default with --board).
 void register_run(CLI::App& app);
-// `dentmark-edge track ...` and `dentmark-edge teach ...`: offline tracker tools.
+// `dentmark-edge track ...`: offline replay through the tracker (seeds or a panel model).
 void register_track(CLI::App& app);
+// `dentmark-edge teach ...`: a panel model for the seedless start.
+void register_teach(CLI::App& app);
 // `dentmark-edge simulate ...`: the station's twin end to end (Table I scenarios).
 void register_simulate(CLI::App& app);
 

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   dentmark::edge::register_run(app);
   dentmark::edge::register_track(app);
+  dentmark::edge::register_teach(app);
   dentmark::edge::register_simulate(app);
   try {
     app.parse(argc, argv);

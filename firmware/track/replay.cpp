@@ -9,11 +9,33 @@
 #include <sstream>
 
 #include "dentmark/common/log.h"
+#include "dentmark/firmware/track/model_search.h"
 #include "dentmark/firmware/track/sequence.h"
 #include "dentmark/firmware/track/track_error.h"
 
 namespace dentmark::track {
 namespace fs = std::filesystem;
+
+namespace {
+
+// Frames after the first through the started tracker; unreadable ones are predicted through.
+void track_rest(const Sequence& seq, Tracker& tracker, ReplayResult& out, std::size_t until) {
+  for (std::size_t k = 1; k < until; ++k) {
+    const FrameEntry& f = seq.frames[k];
+    cv::Mat l, r;
+    try {
+      l = load_grey(f.left, seq.calibration.size);
+      r = load_grey(f.right, seq.calibration.size);
+    } catch (const TrackError& e) {
+      log::warn(std::string("frame ") + std::to_string(f.index) + ": " + e.what());
+      out.frames.push_back(tracker.skip(f.t, f.index, e.what()));
+      continue;
+    }
+    out.frames.push_back(tracker.track(l, r, f.t, f.index));
+  }
+}
+
+}  // namespace
 
 ReplayResult replay_sequence(const fs::path& dir, const TrackerOptions& options) {
   const Sequence seq = load_sequence(dir);
@@ -28,20 +50,80 @@ ReplayResult replay_sequence(const fs::path& dir, const TrackerOptions& options)
     throw TrackError((dir / "seeds.yaml").string() + ": " + e.what());
   }
   out.reference_features = static_cast<int>(tracker.reference().size());
-  for (std::size_t k = 1; k < seq.frames.size(); ++k) {
-    const FrameEntry& f = seq.frames[k];
-    cv::Mat l, r;
-    try {
-      l = load_grey(f.left, seq.calibration.size);
-      r = load_grey(f.right, seq.calibration.size);
-    } catch (const TrackError& e) {
-      log::warn(std::string("frame ") + std::to_string(f.index) + ": " + e.what());
-      out.frames.push_back(tracker.skip(f.t, f.index, e.what()));
-      continue;
-    }
-    out.frames.push_back(tracker.track(l, r, f.t, f.index));
-  }
+  track_rest(seq, tracker, out, seq.frames.size());
   return out;
+}
+
+ReplayResult replay_sequence_with_model(const fs::path& dir, const fs::path& model_path,
+                                        const TrackerOptions& options) {
+  const Sequence seq = load_sequence(dir);
+  const PanelModel model = load_panel_model(model_path, seq.calibration.size);
+  const FrameEntry& f0 = seq.frames.front();
+  const cv::Mat l0 = load_grey(f0.left, seq.calibration.size), r0 = load_grey(f0.right, seq.calibration.size);
+  std::vector<cv::Point2f> seeds;
+  try {
+    const ModelSearchResult found = search_model(seq.calibration, l0, r0, model);
+    for (const auto& s : found.seeds_right)
+      if (s) seeds.push_back(*s);
+    log::info("panel model " + model_path.string() + ": " + std::to_string(found.found) + " of " +
+              std::to_string(model.features.size()) + " features found in the first frame");
+  } catch (const TrackError& e) {
+    throw TrackError(f0.right.string() + ": " + e.what() + " (model " + model_path.string() + ")");
+  }
+  Tracker tracker(seq.calibration, options);
+  ReplayResult out;
+  try {
+    out.frames.push_back(tracker.start(l0, r0, f0.t, seeds, f0.index));
+  } catch (const TrackError& e) {
+    throw TrackError(f0.right.string() +
+                     ": the panel model's features did not start the tracker: " + e.what());
+  }
+  out.reference_features = static_cast<int>(tracker.reference().size());
+  track_rest(seq, tracker, out, seq.frames.size());
+  return out;
+}
+
+PanelModel teach_sequence(const fs::path& dir, long index, const fs::path& seeds_path,
+                          const TrackerOptions& options) {
+  const Sequence seq = load_sequence(dir);
+  const fs::path seeds_file = seeds_path.empty() ? dir / "seeds.yaml" : seeds_path;
+  const std::vector<cv::Point2f> seeds = load_seeds(seeds_file, seq.calibration.size);
+  std::size_t at = 0;
+  if (index >= 0) {
+    while (at < seq.frames.size() && seq.frames[at].index != index) ++at;
+    if (at == seq.frames.size())
+      throw TrackError((dir / "frames.csv").string() + ": no frame with index " + std::to_string(index));
+  }
+  Tracker tracker(seq.calibration, options);
+  ReplayResult out;
+  const FrameEntry& f0 = seq.frames.front();
+  cv::Mat left = load_grey(f0.left, seq.calibration.size), right = load_grey(f0.right, seq.calibration.size);
+  try {
+    out.frames.push_back(tracker.start(left, right, f0.t, seeds, f0.index));
+  } catch (const TrackError& e) {
+    throw TrackError(seeds_file.string() + ": " + e.what());
+  }
+  if (at > 0) {
+    // Follow the panel to the teach frame, then start afresh there from where the
+    // features are now (refined and triangulated in that frame).
+    track_rest(seq, tracker, out, at + 1);
+    const FrameEntry& f = seq.frames[at];
+    if (!out.frames.back().ok)
+      throw TrackError(f.left.string() + ": the tracker lost the panel at the teach frame (" +
+                       out.frames.back().note + ")");
+    std::vector<cv::Point2f> here;
+    for (std::size_t i = 0; i < tracker.reference().size(); ++i)
+      if (tracker.tracked()[i]) here.push_back(tracker.right_points()[i]);
+    left = load_grey(f.left, seq.calibration.size);
+    right = load_grey(f.right, seq.calibration.size);
+    try {
+      tracker.start(left, right, f.t, here, f.index);
+    } catch (const TrackError& e) {
+      throw TrackError(f.left.string() + ": " + e.what());
+    }
+  }
+  return make_panel_model(left, right, tracker.reference().points(), tracker.left_points(),
+                          tracker.right_points());
 }
 
 void write_replay_json(const ReplayResult& result, const fs::path& path) {

@@ -55,6 +55,37 @@ GridTemplate grid_template(const cv::Mat& grey, const cv::Point2f& p, int half) 
   return t;
 }
 
+cv::Mat affine_patch(const cv::Mat& grey, const cv::Point2d& centre, const cv::Matx22d& a, int half) {
+  const int n = 2 * half + 1;
+  // The corners of the sampled area must keep the 4-tap support inside the image.
+  for (int sy : {-1, 1})
+    for (int sx : {-1, 1}) {
+      const cv::Vec2d q = a * cv::Vec2d(sx * half, sy * half);
+      const double x = centre.x + q[0], y = centre.y + q[1];
+      if (!(x >= 1 && y >= 1 && x < grey.cols - 3 && y < grey.rows - 3)) return {};
+    }
+  auto weights = [](double t) {
+    return std::array<double, 4>{-0.5 * t * t * t + t * t - 0.5 * t, 1.5 * t * t * t - 2.5 * t * t + 1.0,
+                                 -1.5 * t * t * t + 2.0 * t * t + 0.5 * t, 0.5 * t * t * t - 0.5 * t * t};
+  };
+  cv::Mat out(n, n, CV_32F);
+  for (int v = -half; v <= half; ++v)
+    for (int u = -half; u <= half; ++u) {
+      const double x = centre.x + a(0, 0) * u + a(0, 1) * v, y = centre.y + a(1, 0) * u + a(1, 1) * v;
+      const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+      const auto wx = weights(x - x0), wy = weights(y - y0);
+      double value = 0.0;
+      for (int j = 0; j < 4; ++j) {
+        const uchar* row = grey.ptr<uchar>(y0 - 1 + j);
+        double r = 0.0;
+        for (int i = 0; i < 4; ++i) r += wx[static_cast<std::size_t>(i)] * row[x0 - 1 + i];
+        value += wy[static_cast<std::size_t>(j)] * r;
+      }
+      out.at<float>(v + half, u + half) = static_cast<float>(value);
+    }
+  return out;
+}
+
 std::optional<Alignment> align_template(const cv::Mat& grey, const cv::Mat& templ, const cv::Point2f& start,
                                         const AlignOptions& o) {
   const int n = templ.cols;

@@ -1,5 +1,6 @@
 #include "dentmark/firmware/track/tracker.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
@@ -94,6 +95,29 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
     std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
     const double med = z[z.size() / 2];
     std::erase_if(found, [&](const Candidate& c) { return c.p.z() < 0.5 * med || c.p.z() > 2.0 * med; });
+  }
+  // The camL positions again, with the camR patch seen as camL sees the panel's plane
+  // (stereo_match.h: translation alone leaves 0.1-0.5 px of disparity error, which the
+  // reference would keep for the whole run and which grows into motion error as the
+  // viewing geometry changes with travel).
+  for (int pass = 0; pass < 2 && found.size() >= 3; ++pass) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& f : found) c += f.p;
+    c /= static_cast<double>(found.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& f : found) cov += (f.p - c) * (f.p - c).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    if (eig.eigenvalues()(1) < 1e-3 * eig.eigenvalues()(2)) break;  // collinear: no plane
+    const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+    for (auto& f : found) {
+      const auto m = align_on_plane(calib_, right, left, f.r, f.l, f.p, normal, opt_.stereo);
+      if (!m) continue;
+      const Triangulation tri = triangulate(calib_, calib_.normalize(Cam::kLeft, {m->left})[0],
+                                            calib_.normalize(Cam::kRight, {f.r})[0]);
+      if (tri.reprojection_px > opt_.max_reprojection || !(tri.p_camL.z() > 0)) continue;
+      f.l = m->left;
+      f.p = tri.p_camL;
+    }
   }
   if (static_cast<int>(found.size()) < opt_.min_features)
     throw TrackError("only " + std::to_string(found.size()) + " of " + std::to_string(seeds_right.size()) +

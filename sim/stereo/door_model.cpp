@@ -2,17 +2,21 @@
 
 namespace dentmark::stereo {
 
-DoorModel make_door() {
+DoorModel make_door(DoorKind kind) {
   using V = Eigen::Vector2d;
   DoorModel door;
   // Door skin: bright paint, shaded across by the panel's curvature.
   door.layers.push_back(
       {{V(-0.56, -0.52), V(0.56, -0.52), V(0.58, 0.56), V(-0.56, 0.56)}, 165.0, V(18.0, -12.0)});
   // Window frame (dark seal) and the glass inside it: 5 + 5 corners, the macro-features.
-  const std::vector<V> frame = {V(-0.50, -0.05), V(-0.50, -0.30), V(-0.30, -0.48), V(0.50, -0.48),
-                                V(0.50, -0.05)};
-  const std::vector<V> glass = {V(-0.46, -0.09), V(-0.46, -0.285), V(-0.285, -0.44), V(0.46, -0.44),
-                                V(0.46, -0.09)};
+  std::vector<V> frame = {V(-0.50, -0.05), V(-0.50, -0.30), V(-0.30, -0.48), V(0.50, -0.48), V(0.50, -0.05)};
+  std::vector<V> glass = {V(-0.46, -0.09), V(-0.46, -0.285), V(-0.285, -0.44), V(0.46, -0.44),
+                          V(0.46, -0.09)};
+  if (kind == DoorKind::kRear) {
+    // Square at the front, the slant at the rear (glass inset 4 cm like the front door).
+    frame = {V(-0.50, -0.05), V(-0.50, -0.48), V(0.20, -0.48), V(0.50, -0.20), V(0.50, -0.05)};
+    glass = {V(-0.46, -0.09), V(-0.46, -0.44), V(0.183, -0.44), V(0.46, -0.181), V(0.46, -0.09)};
+  }
   door.layers.push_back({frame, 38.0, V(0.0, 0.0)});
   door.layers.push_back({glass, 100.0, V(25.0, 30.0)});
   // Character line below the window and the handle: structure that is not a feature.

@@ -25,6 +25,9 @@ void check_options(const SequenceOptions& o) {
   if (!(o.baseline > 0.0) || !(o.distance > 0.3)) bad("baseline must be > 0 m and distance > 0.3 m");
   if (!(o.seconds >= 0.0) || !(o.fps > 0.0) || o.seconds * o.fps > 100000) bad("need seconds >= 0, fps > 0");
   if (!(o.lighting >= 0.0 && o.lighting < 0.9)) bad("lighting swing must be in [0, 0.9)");
+  if (!(o.gain > 0.1 && o.gain < 10.0)) bad("gain must be in (0.1, 10)");
+  if (!(std::abs(o.start_offset) < 10.0) || !(std::abs(o.extra_yaw) < 1.0))
+    bad("start offset or yaw out of range");
   if (!(o.noise_sigma >= 0.0) || !(o.blur_sigma >= 0.0) || !(o.seed_error >= 0.0))
     bad("negative noise/blur/seed error");
 }
@@ -39,7 +42,7 @@ void write_points(const fs::path& path, const std::vector<Eigen::Vector3d>& pts)
 void render_into(const SequenceOptions& o, const fs::path& dir) {
   const double toe_in = std::atan(0.5 * o.baseline / o.distance);
   const StereoRig rig = make_rig({o.width, o.height}, o.focal_px, o.baseline, toe_in, o.k1);
-  const StereoRenderer renderer(rig, make_door());
+  const StereoRenderer renderer(rig, make_door(o.rear_door ? DoorKind::kRear : DoorKind::kFront));
   const DoorModel& door = renderer.door();
 
   PanelMotion motion;
@@ -50,11 +53,12 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
   motion.direction = Eigen::Vector3d(1.0, 0.0, 0.08).normalized();
   const double travel = o.speed * o.seconds;
   Transform pose0 = Transform::Identity();
-  pose0.linear() =
-      (Eigen::AngleAxisd(0.12, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
+  pose0.linear() = (Eigen::AngleAxisd(0.12 + o.extra_yaw, Eigen::Vector3d::UnitY()) *
+                    Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
   // The run is centred where the two views overlap (half a baseline right of camL).
-  pose0.translation() = Eigen::Vector3d(0.5 * o.baseline, 0.2, o.distance) - 0.5 * travel * motion.direction;
+  pose0.translation() =
+      Eigen::Vector3d(0.5 * o.baseline, 0.2, o.distance) + (o.start_offset - 0.5 * travel) * motion.direction;
   motion.T_camL_panel0 = pose0;
 
   write_stereo_yaml(rig, dir / "stereo.yaml");
@@ -90,7 +94,7 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
     const double t = k / o.fps;
     const Transform pose = motion.T_camL_panel(t);
     RenderConditions c;
-    c.gain = 1.0 + o.lighting * std::sin(2.0 * std::numbers::pi * t / std::max(o.seconds, 1e-9));
+    c.gain = o.gain * (1.0 + o.lighting * std::sin(2.0 * std::numbers::pi * t / std::max(o.seconds, 1e-9)));
     c.blur_sigma = o.blur_sigma;
     c.noise_sigma = o.noise_sigma;
     if (o.occlude && t >= 0.3 * o.seconds && t <= 0.6 * o.seconds) {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "dentmark/firmware/track/panel_model.h"
 #include "dentmark/firmware/track/tracker.h"
 
 namespace dentmark::track {
@@ -17,6 +18,20 @@ struct ReplayResult {
 // Throws TrackError on unreadable stereo.yaml / frames.csv / seeds.yaml, a bad first
 // frame, or too few usable features. Later unreadable frames become ok = false.
 ReplayResult replay_sequence(const std::filesystem::path& dir, const TrackerOptions& options = {});
+
+// The same without seeds: the panel model (panel_model.h) is acquired in the first
+// frame (model_search.h) and its consensus seeds the tracker. Throws TrackError naming
+// the model file and field when it is missing, malformed or of another image size, and
+// naming the first frame when the model is not found there.
+ReplayResult replay_sequence_with_model(const std::filesystem::path& dir, const std::filesystem::path& model,
+                                        const TrackerOptions& options = {});
+
+// `dentmark-edge teach`: the panel model of the sequence's panel at frame `index` (the
+// frames.csv index; -1: the first frame). The seeds (seeds_right of the first frame,
+// default DIR/seeds.yaml) start the tracker at the first frame, which follows the
+// panel to the teach frame. Throws TrackError naming the file and field or frame.
+PanelModel teach_sequence(const std::filesystem::path& dir, long index = -1,
+                          const std::filesystem::path& seeds = {}, const TrackerOptions& options = {});
 
 // {"frames":[{"index","t","ok","features","quality","rms","motion":[[4x4]]}]}, written to
 // a temporary file then renamed.

@@ -4,6 +4,7 @@
 // depth range), then pyramidal LK camR → camL and sub-pixel refinement in camL by
 // aligning the camR patch (template_align.h).
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <optional>
 
@@ -27,5 +28,16 @@ struct StereoMatch {
 std::optional<StereoMatch> match_right_to_left(const StereoCalibration& calib, const ImagePyramid& right,
                                                const ImagePyramid& left, const cv::Point2f& p_right,
                                                const StereoMatchOptions& options, const LkOptions& lk);
+
+// Refines the camL position of a matched feature by aligning the camR patch after
+// mapping it into camL's view of the panel's local plane (unit normal n_camL through
+// p_camL): the two cameras see a plane under different foreshortening (vergence, the
+// panel's yaw), and a patch aligned by translation alone lands off the corner by a
+// fraction of the neighbouring structure's apparent shift: 0.1-0.5 px of disparity,
+// several mm of depth. Nothing when the patch leaves an image or the match is poor.
+std::optional<StereoMatch> align_on_plane(const StereoCalibration& calib, const cv::Mat& right,
+                                          const cv::Mat& left, const cv::Point2f& p_right,
+                                          const cv::Point2f& p_left, const Eigen::Vector3d& p_camL,
+                                          const Eigen::Vector3d& n_camL, const StereoMatchOptions& options);
 
 }  // namespace dentmark::track

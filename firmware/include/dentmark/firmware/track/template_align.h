@@ -29,6 +29,11 @@ struct GridTemplate {
 };
 GridTemplate grid_template(const cv::Mat& grey, const cv::Point2f& p, int half);
 
+// The (2 half + 1)^2 patch whose pixel u (offset from the centre) is grey at
+// centre + A u, bicubic: a patch seen through a local affine map, e.g. the other
+// camera's view of the same plane (CV_32F; empty when it would leave the image).
+cv::Mat affine_patch(const cv::Mat& grey, const cv::Point2d& centre, const cv::Matx22d& A, int half);
+
 // templ: CV_32F, odd square size. Nothing when the patch leaves the image, the
 // solution diverges or moves further than max_shift.
 std::optional<Alignment> align_template(const cv::Mat& grey, const cv::Mat& templ, const cv::Point2f& start,

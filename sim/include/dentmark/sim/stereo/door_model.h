@@ -24,6 +24,10 @@ struct DoorModel {
   std::vector<Eigen::Vector2d> lower_panel_points;  // where motion errors are measured
 };
 
-DoorModel make_door();
+// Two models of the line: the front door (the default) and a rear door whose window has
+// a different outline (a panel model taught on one must not lock onto the other).
+enum class DoorKind { kFront = 0, kRear = 1 };
+
+DoorModel make_door(DoorKind kind = DoorKind::kFront);
 
 }  // namespace dentmark::stereo

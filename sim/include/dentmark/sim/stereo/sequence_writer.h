@@ -33,6 +33,13 @@ struct SequenceOptions {
   double stop_at = -1.0;     // s (< 0: no stop)
   double stop_for = 0.0;     // s
   bool colour = false;       // write BGR PNGs
+  // Where this panel sits on the line: the run starts start_offset metres further along
+  // the conveyor than the centred run, the door turned by extra_yaw (rad, about camL y),
+  // under an overall lighting gain (1: as taught). For acquiring a later panel of a model.
+  double start_offset = 0.0;
+  double extra_yaw = 0.0;
+  double gain = 1.0;
+  bool rear_door = false;  // render the rear door (a different panel model)
   std::uint64_t seed = 1;
 };
 
