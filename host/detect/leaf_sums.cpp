@@ -45,18 +45,20 @@ struct Chunk {
 // One thread's chunks: bucket chains and the storage behind them.
 class ChunkStore {
  public:
-  explicit ChunkStore(std::size_t buckets) : head_(buckets, nullptr), tail_(buckets, nullptr) {}
+  explicit ChunkStore(std::size_t buckets) : head_(buckets, nullptr), tail_(buckets) {}
 
   Record& append(std::size_t bucket) {
-    Chunk* c = tail_[bucket];
-    if (!c || c->size == kChunkRecords) {
+    Tail& t = tail_[bucket];
+    if (!t.chunk || t.chunk->size == kChunkRecords) {
       Chunk* fresh = allocate();
-      (c ? c->next : head_[bucket]) = fresh;
-      tail_[bucket] = c = fresh;
+      (t.chunk ? t.chunk->next : head_[bucket]) = fresh;
+      t.chunk = fresh;
     }
-    return c->records[c->size++];
+    ++t.records;
+    return t.chunk->records[t.chunk->size++];
   }
   const Chunk* head(std::size_t bucket) const { return head_[bucket]; }
+  std::uint64_t records(std::size_t bucket) const { return tail_[bucket].records; }
 
  private:
   // Chunks come from 8 MB blocks on transparent huge pages: hundreds of MB of 4 KB page
@@ -76,29 +78,15 @@ class ChunkStore {
   };
   static constexpr std::size_t kHugePage = std::size_t{2} << 20, kBlockBytes = 4 * kHugePage;
   static constexpr std::size_t kBlockChunks = kBlockBytes / sizeof(Chunk);
-  std::vector<Chunk*> head_, tail_;
+  struct Tail {
+    Chunk* chunk = nullptr;
+    std::uint64_t records = 0;
+  };
+  std::vector<Chunk*> head_;
+  std::vector<Tail> tail_;
   std::vector<std::unique_ptr<Chunk, Free>> blocks_;
   std::size_t used_ = 0;
 };
-
-// A run of consecutive triangles in the same leaf, summed in double until it is filed.
-struct Run {
-  std::uint64_t key = ~0ull;
-  std::uint32_t count = 0;
-  double area = 0.0;
-  Eigen::Vector3d an = Eigen::Vector3d::Zero(), ac = Eigen::Vector3d::Zero();
-  Eigen::Vector3f corner = Eigen::Vector3f::Zero();
-};
-
-void file_run(const Run& run, int low_bits, ChunkStore& store) {
-  if (run.count == 0) return;
-  Record& r = store.append(run.key >> low_bits);
-  r.cell = static_cast<std::uint32_t>(run.key & ((std::uint64_t{1} << low_bits) - 1));
-  r.count = run.count;
-  r.area = static_cast<float>(run.area);
-  for (int a = 0; a < 3; ++a)
-    r.an[a] = static_cast<float>(run.an[a]), r.ac[a] = static_cast<float>(run.ac[a]);
-}
 
 // Sums one bucket's records (from every thread's chain) into leaves, in Morton order.
 class BucketSummer {
@@ -186,7 +174,21 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
                       e = n * (t + 1) / static_cast<std::size_t>(threads);
     stores[t] = std::make_unique<ChunkStore>(buckets);
     ChunkStore& store = *stores[t];
-    Run run;
+    const std::uint64_t low_mask = (std::uint64_t{1} << low_bits) - 1;
+    // The current run of consecutive triangles in one leaf, in registers (double sums).
+    std::uint64_t run_key = ~0ull;
+    std::uint32_t run_count = 0;
+    double run_area = 0.0, anx = 0.0, any = 0.0, anz = 0.0, acx = 0.0, acy = 0.0, acz = 0.0;
+    Eigen::Vector3f corner = Eigen::Vector3f::Zero();
+    const auto file_run = [&] {
+      if (run_count == 0) return;
+      Record& r = store.append(run_key >> low_bits);
+      r.cell = static_cast<std::uint32_t>(run_key & low_mask);
+      r.count = run_count;
+      r.area = static_cast<float>(run_area);
+      r.an[0] = static_cast<float>(anx), r.an[1] = static_cast<float>(any), r.an[2] = static_cast<float>(anz);
+      r.ac[0] = static_cast<float>(acx), r.ac[1] = static_cast<float>(acy), r.ac[2] = static_cast<float>(acz);
+    };
     for (std::size_t i = b; i < e; ++i) {
       if (i + kPrefetch < e) {
         const auto& f = T[i + kPrefetch];
@@ -196,19 +198,21 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
       const Eigen::Vector3f va = V[tri[0]], vb = V[tri[1]], vc = V[tri[2]];
       const Eigen::Vector3f c = (va + vb + vc) * (1.0f / 3.0f);
       // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
-      const Eigen::Vector3d an = (0.5f * (vb - va).cross(vc - va)).cast<double>();
-      const double area = an.norm();
+      const Eigen::Vector3f an = 0.5f * (vb - va).cross(vc - va);
+      const float area = an.norm();
       const std::uint64_t key = grid.key(c);
-      if (key != run.key || run.count == ~0u) {
-        file_run(run, low_bits, store);
-        run = Run{key, 0, 0.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), grid.corner(key)};
+      if (key != run_key || run_count == ~0u) {
+        file_run();
+        run_key = key, run_count = 0, corner = grid.corner(key);
+        run_area = anx = any = anz = acx = acy = acz = 0.0;
       }
-      run.count += 1;
-      run.area += area;
-      run.an += an;
-      run.ac += area * (c - run.corner).cast<double>();
+      const Eigen::Vector3f ac = area * (c - corner);
+      run_count += 1;
+      run_area += area;
+      anx += an.x(), any += an.y(), anz += an.z();
+      acx += ac.x(), acy += ac.y(), acz += ac.z();
     }
-    file_run(run, low_bits, store);
+    file_run();
   }
 
   // Pass 2: buckets in key order, split between threads by record count; each thread's
@@ -216,8 +220,7 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
-    for (const auto& s : stores)
-      for (const Chunk* ch = s->head(k); ch; ch = ch->next) c += ch->size;
+    for (const auto& s : stores) c += s->records(k);
     start[k + 1] = start[k] + c;
   }
   const std::uint64_t records = start[buckets];
@@ -231,8 +234,10 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
                                       start.begin());
     };
     const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
+    // A leaf holds at least one record, so this never regrows; the capacity beyond the
+    // leaves is address space only, never touched. Thread 0's part receives the others.
     auto& out = parts[t];
-    out.reserve((start[ke] - start[kb]) / 8 + 16);
+    out.reserve(t == 0 ? records : start[ke] - start[kb]);
     BucketSummer summer;
     std::vector<const Chunk*> chains(stores.size());
     for (std::size_t k = kb; k < ke; ++k) {
@@ -242,11 +247,8 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
     }
   }
   stores.clear();
-  std::vector<OctreeLeaf> leaves;
-  std::size_t total = 0;
-  for (const auto& p : parts) total += p.size();
-  leaves.reserve(total);
-  for (auto& p : parts) leaves.insert(leaves.end(), p.begin(), p.end()), p = {};
+  std::vector<OctreeLeaf> leaves = std::move(parts[0]);
+  for (std::size_t p = 1; p < parts.size(); ++p) leaves.insert(leaves.end(), parts[p].begin(), parts[p].end());
   return leaves;
 }
 

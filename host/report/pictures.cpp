@@ -3,9 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dentmark/common/image/png_io.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/report/defects_json.h"
 
@@ -78,15 +78,11 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
                 cv::LINE_AA);
   }
   const std::string tmp = path + ".tmp.png";
-  bool ok = false;
   try {
-    ok = cv::imwrite(tmp, canvas);
-  } catch (const cv::Exception&) {
-    ok = false;
-  }
-  if (!ok) {
+    image::write_png(tmp, canvas);
+  } catch (const image::ImageError& e) {
     std::remove(tmp.c_str());
-    throw ReportError(path + ": cannot write the PNG");
+    throw ReportError(path + ": cannot write the PNG (" + e.what() + ")");
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);

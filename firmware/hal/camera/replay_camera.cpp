@@ -2,9 +2,10 @@
 
 #include <cmath>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+
+#include "dentmark/common/image/png_io.h"
 
 namespace dentmark::hal {
 namespace {
@@ -22,11 +23,14 @@ std::vector<std::string> split_csv(const std::string& line) {
 }
 
 cv::Mat read_grey(const std::filesystem::path& path) {
-  cv::Mat img = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
-  if (img.empty()) throw CameraError(path.string() + ": cannot read image");
+  cv::Mat img;
+  try {
+    img = image::read_png(path.string());
+  } catch (const image::ImageError& e) {
+    throw CameraError(e.what());
+  }
   if (img.depth() != CV_8U) throw CameraError(path.string() + ": expected an 8-bit image");
   if (img.channels() == 3) cv::cvtColor(img, img, cv::COLOR_BGR2GRAY);
-  if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2GRAY);
   return img;
 }
 
