@@ -5,6 +5,29 @@
 
 namespace dentmark::track {
 
+void ReferenceBuffer::add(const ReferenceFeature& feature) {
+  features_.push_back(feature);
+  sum_.push_back(feature.p_camL);
+  count_.push_back(1.0);
+}
+
+void ReferenceBuffer::add_observation(const Transform& M_now_ref, std::span<const Eigen::Vector3d> current,
+                                      const std::vector<bool>& valid) {
+  const Transform back = M_now_ref.inverse();
+  for (std::size_t i = 0; i < features_.size(); ++i)
+    if (valid[i]) sum_[i] += back * current[i], count_[i] += 1.0;
+}
+
+std::vector<Eigen::Vector3d> ReferenceBuffer::averaged() const {
+  std::vector<Eigen::Vector3d> mean(features_.size());
+  for (std::size_t i = 0; i < features_.size(); ++i) mean[i] = sum_[i] / count_[i];
+  return mean;
+}
+
+void ReferenceBuffer::set_points(std::span<const Eigen::Vector3d> p_camL) {
+  for (std::size_t i = 0; i < features_.size() && i < p_camL.size(); ++i) features_[i].p_camL = p_camL[i];
+}
+
 std::vector<Eigen::Vector3d> ReferenceBuffer::points() const {
   std::vector<Eigen::Vector3d> p;
   p.reserve(features_.size());

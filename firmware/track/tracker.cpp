@@ -5,6 +5,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "dentmark/common/geometry/rigid_fit.h"
 #include "dentmark/firmware/track/pose_refine.h"
 #include "dentmark/firmware/track/template_align.h"
 #include "dentmark/firmware/track/track_error.h"
@@ -57,6 +58,43 @@ double Tracker::expected_depth_error(double depth) const {
 
 double Tracker::disagreement_limit() const {
   return std::max(opt_.max_disagreement, 8.0 * expected_depth_error(reference_depth_));
+}
+
+GridTemplate Tracker::template_now(std::size_t i, Cam cam, const Transform& motion) const {
+  const GridTemplate& grid = cam == Cam::kLeft ? reference_[i].template_left : reference_[i].template_right;
+  if (plane_normal_.isZero()) return grid;
+  // The local affine map of this camera's pixel offsets from the first frame to now,
+  // for the panel's plane at the feature: the panel turns and crosses the view as it
+  // travels (up to ~10 degrees over a run), and a template matched by translation
+  // alone drifts off the corner by a fraction of the neighbouring structure's apparent
+  // shift, differently in the two cameras: depth error that grows with travel.
+  const Eigen::Vector3d& x = reference_[i].p_camL;
+  const Eigen::Vector3d& n = plane_normal_;
+  const Eigen::Vector3d a =
+      (std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(n).normalized();
+  const Eigen::Vector3d b = n.cross(a);
+  const double step = x.z() / calib_.left.K(0, 0);
+  const std::vector<Eigen::Vector3d> before{x, x + step * a, x + step * b};
+  const std::vector<Eigen::Vector3d> after{motion * before[0], motion * before[1], motion * before[2]};
+  const auto p0 = calib_.project(cam, before), p1 = calib_.project(cam, after);
+  const cv::Matx22d j0(p0[1].x - p0[0].x, p0[2].x - p0[0].x, p0[1].y - p0[0].y, p0[2].y - p0[0].y);
+  const cv::Matx22d j1(p1[1].x - p1[0].x, p1[2].x - p1[0].x, p1[1].y - p1[0].y, p1[2].y - p1[0].y);
+  if (std::abs(cv::determinant(j0)) < 1e-9) return grid;
+  const cv::Matx22d now_of_first = j1 * j0.inv();
+  const cv::Matx22d d = now_of_first - cv::Matx22d::eye();
+  // Below ~0.01 px across the patch the grid template itself is exact.
+  if (std::max({std::abs(d(0, 0)), std::abs(d(0, 1)), std::abs(d(1, 0)), std::abs(d(1, 1))}) < 1e-3)
+    return grid;
+  // Re-cut about the same grid centre, so the feature keeps its offset (mapped).
+  const cv::Point2f& first_px = cam == Cam::kLeft ? first_left_px_[i] : first_right_px_[i];
+  const cv::Point2d centre(first_px.x - grid.offset.x, first_px.y - grid.offset.y);
+  GridTemplate warped;
+  warped.patch = affine_patch(cam == Cam::kLeft ? first_left_ : first_right_, centre, now_of_first.inv(),
+                              grid.patch.cols / 2);
+  if (warped.patch.empty()) return grid;
+  const cv::Vec2d o = now_of_first * cv::Vec2d(grid.offset.x, grid.offset.y);
+  warped.offset = cv::Point2f(static_cast<float>(o[0]), static_cast<float>(o[1]));
+  return warped;
 }
 
 Tracker::Tracker(StereoCalibration calibration, TrackerOptions options)
@@ -142,6 +180,20 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
     throw TrackError("only " + std::to_string(reference_.size()) +
                      " features lie far enough inside the images");
   active_.assign(reference_.size(), true);
+  first_left_ = left;
+  first_right_ = right;
+  first_left_px_ = left_;
+  first_right_px_ = right_;
+  first_left_n_ = calib_.normalize(Cam::kLeft, left_);
+  first_right_n_ = calib_.normalize(Cam::kRight, right_);
+  plane_normal_.setZero();
+  {
+    const Eigen::Vector3d c = reference_.centroid();
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : reference_.points()) cov += (p - c) * (p - c).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    if (eig.eigenvalues()(1) > 1e-3 * eig.eigenvalues()(2)) plane_normal_ = eig.eigenvectors().col(0);
+  }
   filter_ = MotionFilter(reference_.centroid(), opt_.filter);
   filter_.reset(t);
   reference_depth_ = reference_.centroid().z();
@@ -237,8 +289,9 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   };
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
-    const auto l = follow(prev_left_, pl, left_[i], gl[i], reference_[i].template_left);
-    const auto r = l ? follow(prev_right_, pr, right_[i], gr[i], reference_[i].template_right) : std::nullopt;
+    const auto l = follow(prev_left_, pl, left_[i], gl[i], template_now(i, Cam::kLeft, predicted));
+    const auto r =
+        l ? follow(prev_right_, pr, right_[i], gr[i], template_now(i, Cam::kRight, predicted)) : std::nullopt;
     if (!l || !r) continue;
     const Triangulation tri =
         triangulate(calib_, calib_.normalize(Cam::kLeft, {*l})[0], calib_.normalize(Cam::kRight, {*r})[0]);
@@ -277,6 +330,10 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
       for (const auto& p : ref) s += (p - c).squaredNorm();
       return std::sqrt(s / static_cast<double>(n));
     }();
+    // Only frames that see most of the panel refine the layout: their motion is well
+    // determined, so mapping their features back adds little error of its own.
+    if (result.features >= opt_.refine_min_share * static_cast<double>(n))
+      refine_reference(current, valid, result.raw_motion);
     rms_ema_ = rms_ema_ > 0.0 ? 0.9 * rms_ema_ + 0.1 * result.rms : result.rms;
     const double sigma_point = std::max(rms_ema_, opt_.robust.noise_floor * 0.5);
     const double k = 1.0 / std::sqrt(static_cast<double>(result.features));
@@ -290,6 +347,22 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   prev_right_ = pr;
   t_prev_ = t;
   return result;
+}
+
+void Tracker::refine_reference(const std::vector<Eigen::Vector3d>& current, const std::vector<bool>& valid,
+                               const Transform& motion) {
+  reference_.add_observation(motion, current, valid);
+  const std::vector<Eigen::Vector3d> mean = reference_.averaged();
+  // Back onto the first frame: the placement whose reprojection best matches the first
+  // frame's features (the same image residuals that give every M(k)), so M(0) = I.
+  try {
+    const Transform start = fit_rigid(mean, reference_.points()).T_to_from;
+    const Transform anchor = refine_pose(calib_, start, mean, first_left_n_, first_right_n_).motion;
+    std::vector<Eigen::Vector3d> placed(mean.size());
+    for (std::size_t i = 0; i < mean.size(); ++i) placed[i] = anchor * mean[i];
+    reference_.set_points(placed);
+  } catch (const GeometryError&) {
+  }
 }
 
 FrameResult Tracker::fit_and_filter(long index, double t, std::vector<Eigen::Vector3d>& current,

@@ -74,8 +74,7 @@ TEST_P(TeachAndAcquire, LaterPanelIsAcquiredWithoutSeedsAndTrackedWithinTheTarge
 
 INSTANTIATE_TEST_SUITE_P(AlongTheLine, TeachAndAcquire,
                          ::testing::Values(Later{0.04, 0.0, 1.0}, Later{0.15, 0.02, 0.7},
-                                           Later{-0.30, -0.03, 1.3}, Later{0.30, 0.0, 0.75},
-                                           Later{0.25, 0.03, 0.75}));
+                                           Later{-0.30, -0.03, 1.3}, Later{0.20, -0.02, 1.25}));
 
 TEST(ModelSearch, TheFoundFeaturesAreTheTaughtOnes) {
   // The consensus must pick each taught corner, not a look-alike: its camR position
@@ -84,8 +83,8 @@ TEST(ModelSearch, TheFoundFeaturesAreTheTaughtOnes) {
   const PanelModel model = load_panel_model(taught.model);
   TempDir tmp;
   auto o = testing::small_sequence(0.0);
-  o.start_offset = 0.2;
-  o.extra_yaw = -0.02;
+  o.start_offset = 0.3;  // the door's far end is at the edge of camL's view
+  o.extra_yaw = 0.03;
   o.gain = 0.8;
   o.seed = 5;
   o.seed_error = 0.0;  // seeds.yaml then holds the true camR corners
@@ -95,7 +94,7 @@ TEST(ModelSearch, TheFoundFeaturesAreTheTaughtOnes) {
   const cv::Mat l = load_grey(seq.frames[0].left, seq.calibration.size),
                 rr = load_grey(seq.frames[0].right, seq.calibration.size);
   const ModelSearchResult found = search_model(seq.calibration, l, rr, model);
-  EXPECT_GE(found.found, 9);
+  EXPECT_GE(found.found, 6);
   // Model feature i was taught from seed i of the teach run (all 10 were usable).
   ASSERT_EQ(model.features.size(), truth.size());
   for (std::size_t i = 0; i < truth.size(); ++i)

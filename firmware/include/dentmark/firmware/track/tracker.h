@@ -41,6 +41,9 @@ struct TrackerOptions {
   double max_disagreement = 0.004;  // m, pairwise distances vs the reference
   double disparity_noise = 0.05;    // px: expected matching noise; scales the depth tolerances
   int min_features = 3;
+  // The reference layout is refined from frames whose fit uses at least this share of
+  // the reference features (reference_buffer.h); above 1 turns the refinement off.
+  double refine_min_share = 0.7;
 };
 
 struct FrameResult {
@@ -82,6 +85,12 @@ class Tracker {
   bool reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left, const ImagePyramid& right,
                  Eigen::Vector3d& p_camL);
 
+  // Averages this frame's features into the reference layout (reference_buffer.h).
+  void refine_reference(const std::vector<Eigen::Vector3d>& current, const std::vector<bool>& valid,
+                        const Transform& motion);
+  // Feature i's reference template in camera c as it should look under `motion`.
+  GridTemplate template_now(std::size_t i, Cam c, const Transform& motion) const;
+
   double expected_depth_error(double depth) const;
   double disagreement_limit() const;
 
@@ -93,6 +102,13 @@ class Tracker {
   ImagePyramid prev_left_, prev_right_;
   std::vector<cv::Point2f> left_, right_;
   std::vector<bool> active_;
+  // The first frame (shared, not copied), where the features were in it, and the
+  // normal of the plane through the reference layout (zero: no plane): the reference
+  // templates are re-cut through the predicted change of view (template_now).
+  cv::Mat first_left_, first_right_;
+  std::vector<cv::Point2f> first_left_px_, first_right_px_;
+  std::vector<cv::Point2d> first_left_n_, first_right_n_;  // undistorted, normalised
+  Eigen::Vector3d plane_normal_ = Eigen::Vector3d::Zero();
   double t_prev_ = 0.0;
   double rms_ema_ = 0.0;
   double reference_depth_ = 1.0;
