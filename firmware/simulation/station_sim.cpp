@@ -96,7 +96,10 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   const auto frames = [&]() -> std::optional<station::StereoFrame> {
     std::lock_guard lock(render_mutex);
     // Like a camera, deliver the newest exposure: frames missed while busy are dropped.
-    next_index = std::max(next_index, static_cast<long>(std::floor(clock.now() * scenario.fps)));
+    // The first pair (it seeds the tracker, whose M(t) is relative to it) is the one the
+    // cameras took with the scan at t = 0; later ones are the newest exposure.
+    if (next_index > 0)
+      next_index = std::max(next_index, static_cast<long>(std::floor(clock.now() * scenario.fps)));
     const double t = next_index / scenario.fps;
     if (t > t_end) return std::nullopt;
     clock.sleep_until(t);
