@@ -96,8 +96,8 @@ int run_detect(const DetectArgs& a) {
   for (const auto& f : det.defects) {
     const auto& d = f.defect;
     std::printf("  #%u %s at (%.4f, %.4f, %.4f) m, diameter %.1f mm, height %+.3f mm, score %.2f\n", d.id,
-                d.defect_class == protocol::DefectClass::kDent ? "dent" : "bump", d.position.x(),
-                d.position.y(), d.position.z(), 1e3 * d.diameter, 1e3 * d.height, d.score);
+                report::class_name(d.defect_class), d.position.x(), d.position.y(), d.position.z(),
+                1e3 * d.diameter, 1e3 * d.height, d.score);
   }
   if (a.verbose) {
     const auto& s = det.stats;
@@ -157,6 +157,7 @@ int run_synth(SynthArgs a) {
                                {"noise", a.options.noise},
                                {"outlier_fraction", a.options.outlier_fraction},
                                {"dropouts", a.options.dropouts},
+                               {"holes", a.options.holes},
                                {"shuffled", a.options.shuffle},
                                // Where the scanned door sits in 'sls' (rows of the 4x4 T_sls_panel) and its
                                // size: the station twin places the same door in the tracking cameras' view.
@@ -209,6 +210,7 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   sc->add_option("--max-depth", s->options.max_depth, "m");
   sc->add_option("--outliers", s->options.outlier_fraction, "Fraction of points thrown 2-20 mm off");
   sc->add_option("--dropouts", s->options.dropouts, "Number of missing discs");
+  sc->add_option("--holes", s->options.holes, "Number of through-holes (defects) showing the inner panel");
   sc->add_option("--width", s->options.shape.width, "Panel width (m)");
   sc->add_option("--height", s->options.shape.height, "Panel height (m)");
   sc->add_flag("--shuffle", s->options.shuffle, "Vertices and triangles in random order");

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -14,6 +15,7 @@
 #include "dentmark/common/geometry/plane_fit.h"
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
+#include "holes.h"
 
 namespace dentmark::detect {
 namespace {
@@ -103,7 +105,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   lap("features");
 
   // --- Height map and robust reference surface ---
-  out.map = build_height_map(tree, h);
+  out.map = build_height_map(tree, h, cfg.hole_depth);
   const HeightMap& map = out.map;
   const int rows = map.rows, cols = map.cols;
   cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
@@ -188,6 +190,20 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   }
   lap("reference");
 
+  // --- Holes: enclosed regions seen through; their rim is theirs, not a dent's ---
+  const std::vector<HoleRegion> holes = find_holes(map, dev, ref, cfg.hole_depth, cfg.max_hole_diameter);
+  cv::Mat hole_zone(rows, cols, CV_8U, cv::Scalar(0));
+  for (const auto& hr : holes) {
+    for (auto k : hr.pixels) hole_zone.data[k] = 255;
+    for (auto k : hr.seen_deep) hole_zone.data[k] = 255;
+  }
+  {
+    const int rad = std::max(2, static_cast<int>(std::lround(0.002 / h)));
+    cv::dilate(hole_zone, hole_zone,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  }
+  cand &= ~hole_zone;
+
   // --- Candidates: deviation test or eq. (3)-(4) feature groups ---
   cv::Mat octree_px(rows, cols, CV_8U, cv::Scalar(0));
   for (const auto& g : groups)
@@ -197,6 +213,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       const long k = map.pixel_of(q.x(), q.y());
       if (k >= 0) octree_px.data[k] = 255;
     }
+  octree_px &= ~hole_zone;
   cv::Mat any = cand | octree_px;
   cv::Mat labels;
   const int ncomp = cv::connectedComponents(any, labels, 8, CV_32S);
@@ -215,6 +232,25 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   const Eigen::Vector3d w_axis = map.axes.row(2).transpose();
 
   auto point_of = [&](std::int32_t k) { return Eigen::Vector3d(map.u[k], map.v[k], map.w[k]); };
+  // Least-squares plane (common/geometry) over a normal_patch square around pixel (pr, pc),
+  // pixels set in 'exclude' left out; oriented towards the sensor.
+  auto patch_normal = [&](int pr, int pc, const cv::Mat& exclude) -> Eigen::Vector3d {
+    std::vector<Eigen::Vector3d> pts;
+    std::vector<double> wts;
+    const int hp = std::max(1, static_cast<int>(std::lround(0.5 * cfg.normal_patch / h)));
+    for (int r = std::max(0, pr - hp); r <= std::min(rows - 1, pr + hp); ++r)
+      for (int c = std::max(0, pc - hp); c <= std::min(cols - 1, pc + hp); ++c) {
+        const int k = r * cols + c;
+        if (!(map.weight[k] > 0.0f) || exclude.data[k]) continue;
+        pts.push_back(map.to_scan(map.u[k], map.v[k], map.w[k]));
+        wts.push_back(map.weight[k]);
+      }
+    try {
+      if (pts.size() >= 3) return fit_plane(pts, wts, w_axis).normal;
+    } catch (const std::exception&) {
+    }
+    return w_axis;
+  };
 
   struct Shape {
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
@@ -462,24 +498,9 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     // Normal: least-squares plane over a normal_patch square around the defect,
     // leaving out the candidate itself.
     {
-      std::vector<Eigen::Vector3d> pts;
-      std::vector<double> wts;
-      const int hp = std::max(1, static_cast<int>(std::lround(0.5 * cfg.normal_patch / h)));
       const long pk = map.pixel_of(pos.x(), pos.y());
-      const int pr = pk >= 0 ? static_cast<int>(pk / cols) : peak / cols,
-                pc = pk >= 0 ? static_cast<int>(pk % cols) : peak % cols;
-      for (int r = std::max(0, pr - hp); r <= std::min(rows - 1, pr + hp); ++r)
-        for (int c = std::max(0, pc - hp); c <= std::min(cols - 1, pc + hp); ++c) {
-          const int k = r * cols + c;
-          if (!(map.weight[k] > 0.0f) || any.data[k]) continue;
-          pts.push_back(map.to_scan(map.u[k], map.v[k], map.w[k]));
-          wts.push_back(map.weight[k]);
-        }
-      try {
-        if (pts.size() >= 3) d.normal = fit_plane(pts, wts, w_axis).normal;
-      } catch (const std::exception&) {
-        d.normal = w_axis;
-      }
+      d.normal = patch_normal(pk >= 0 ? static_cast<int>(pk / cols) : peak / cols,
+                              pk >= 0 ? static_cast<int>(pk % cols) : peak % cols, any);
     }
     d.height = height;
     d.diameter = std::max(h, 4.0 * r_half);
@@ -505,6 +526,46 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     d.id = static_cast<std::uint32_t>(is_defect ? out.defects.size() : out.features.size());
     (is_defect ? out.defects : out.features).push_back(std::move(f));
   }
+  // Holes: centre on the reference surface, normal from the skin around them.
+  for (const HoleRegion& hr : holes) {
+    Finding f;
+    f.pixels = static_cast<int>(hr.pixels.size());
+    protocol::Defect& d = f.defect;
+    d.defect_class = protocol::DefectClass::kHole;
+    double su = 0.0, sv = 0.0, sw = 0.0;
+    int nw = 0;
+    for (auto k : hr.pixels) {
+      su += map.u0 + (k % cols + 0.5) * h, sv += map.v0 + (k / cols + 0.5) * h;
+      if (std::isfinite(ref[static_cast<std::size_t>(k)]) && map.weight[static_cast<std::size_t>(k)] > 0.0f)
+        sw += ref[static_cast<std::size_t>(k)], ++nw;
+    }
+    const double n = static_cast<double>(hr.pixels.size());
+    const double pu = su / n, pv = sv / n;
+    const long pk = map.pixel_of(pu, pv);
+    const int pr = pk >= 0 ? static_cast<int>(pk / cols) : hr.pixels.front() / cols,
+              pc = pk >= 0 ? static_cast<int>(pk % cols) : hr.pixels.front() % cols;
+    if (nw == 0) {  // no see-through pixel carries the reference: the skin around it
+      const int rad = static_cast<int>(std::ceil(0.5 * hr.diameter / h)) + 3;
+      for (int r = std::max(0, pr - rad); r <= std::min(rows - 1, pr + rad); ++r)
+        for (int c = std::max(0, pc - rad); c <= std::min(cols - 1, pc + rad); ++c) {
+          const int k = r * cols + c;
+          if (map.weight[k] > 0.0f && !hole_zone.data[k]) sw += map.w[k], ++nw;
+        }
+    }
+    d.position = map.to_scan(pu, pv, nw > 0 ? sw / nw : 0.0);
+    d.normal = patch_normal(pr, pc, hole_zone);
+    d.diameter = hr.diameter;
+    d.area = std::numbers::pi * 0.25 * hr.diameter * hr.diameter;
+    d.height = 0.0;  // no surface to measure
+    d.score = 1.0 - std::exp(-static_cast<double>(hr.behind) / 4.0);
+    char why[96];
+    std::snprintf(why, sizeof why, "through-hole: inner structure seen %.0f mm behind the skin",
+                  1e3 * hr.backdrop_depth);
+    f.reason = why;
+    d.id = static_cast<std::uint32_t>(out.defects.size());
+    for (auto k : hr.pixels) out.labels[static_cast<std::size_t>(k)] = static_cast<int>(out.defects.size());
+    out.defects.push_back(std::move(f));
+  }
   // Most confident first; ids in that order.
   std::stable_sort(out.defects.begin(), out.defects.end(),
                    [](const Finding& a, const Finding& b) { return a.defect.score > b.defect.score; });
@@ -523,7 +584,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       const auto& di = out.defects[i].defect;
       for (std::size_t j = 0; j < kept.size(); ++j) {
         const auto& dj = kept[j].defect;
-        if ((di.height < 0) == (dj.height < 0) &&
+        if (di.defect_class == dj.defect_class &&
             (di.position - dj.position).norm() < 0.5 * std::max(di.diameter, dj.diameter)) {
           merged_into[i] = static_cast<std::int32_t>(j);
           break;

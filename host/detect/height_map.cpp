@@ -16,7 +16,7 @@ long HeightMap::pixel_of(double pu, double pv) const {
   return static_cast<long>(r) * cols + static_cast<long>(c);
 }
 
-HeightMap build_height_map(const LinearOctree& tree, double pixel) {
+HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth) {
   const auto& leaves = tree.leaves();
   HeightMap map;
   map.pixel = pixel;
@@ -45,6 +45,8 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel) {
   map.axes.row(0) = u.transpose();
   map.axes.row(1) = v.transpose();
   map.axes.row(2) = w.transpose();
+  map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
+  map.has_viewpoint = map.viewpoint.z() > 0.1;
 
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
   std::vector<Eigen::Vector3d> q(leaves.size());
@@ -59,6 +61,12 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel) {
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
   const std::size_t n = map.size();
+  std::vector<float> front(n, -std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < leaves.size(); ++i) {
+    if (!(leaves[i].area > 0.0)) continue;
+    const long k = map.pixel_of(q[i].x(), q[i].y());
+    if (k >= 0) front[k] = std::max(front[k], static_cast<float>(q[i].z()));
+  }
   std::vector<double> sw(n, 0.0), su(n, 0.0), sv(n, 0.0), sh(n, 0.0);
   std::vector<Eigen::Vector3d> sn(n, Eigen::Vector3d::Zero());
   for (std::size_t i = 0; i < leaves.size(); ++i) {
@@ -66,6 +74,10 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel) {
     if (!(a > 0.0)) continue;
     const long k = map.pixel_of(q[i].x(), q[i].y());
     if (k < 0) continue;
+    if (q[i].z() < front[k] - layer_depth) {
+      map.behind.push_back(q[i].cast<float>());
+      continue;
+    }
     sw[k] += a, su[k] += a * q[i].x(), sv[k] += a * q[i].y(), sh[k] += a * q[i].z();
     sn[k] += leaves[i].sum_an;
   }

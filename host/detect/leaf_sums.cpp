@@ -1,7 +1,5 @@
 #include "leaf_sums.h"
 
-#include <sys/mman.h>
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -61,13 +59,12 @@ class ChunkStore {
   std::uint64_t records(std::size_t bucket) const { return tail_[bucket].records; }
 
  private:
-  // Chunks come from 8 MB blocks on transparent huge pages: hundreds of MB of 4 KB page
-  // faults would otherwise cost more than the work, and they serialise the threads.
+  // Chunks come from 8 MB blocks, uninitialised until used (no zeroing pass; not huge
+  // pages either: under defrag=madvise a huge-page fault may compact memory for 100s of ms).
   Chunk* allocate() {
     if (blocks_.empty() || used_ == kBlockChunks) {
-      void* p = std::aligned_alloc(kHugePage, kBlockBytes);
+      void* p = std::malloc(kBlockChunks * sizeof(Chunk));
       if (!p) throw std::bad_alloc();
-      ::madvise(p, kBlockBytes, MADV_HUGEPAGE);  // a hint: plain pages if refused
       blocks_.emplace_back(static_cast<Chunk*>(p));
       used_ = 0;
     }
@@ -76,8 +73,7 @@ class ChunkStore {
   struct Free {
     void operator()(Chunk* p) const { std::free(p); }
   };
-  static constexpr std::size_t kHugePage = std::size_t{2} << 20, kBlockBytes = 4 * kHugePage;
-  static constexpr std::size_t kBlockChunks = kBlockBytes / sizeof(Chunk);
+  static constexpr std::size_t kBlockChunks = (std::size_t{8} << 20) / sizeof(Chunk);
   struct Tail {
     Chunk* chunk = nullptr;
     std::uint64_t records = 0;
@@ -248,7 +244,8 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
   }
   stores.clear();
   std::vector<OctreeLeaf> leaves = std::move(parts[0]);
-  for (std::size_t p = 1; p < parts.size(); ++p) leaves.insert(leaves.end(), parts[p].begin(), parts[p].end());
+  for (std::size_t p = 1; p < parts.size(); ++p)
+    leaves.insert(leaves.end(), parts[p].begin(), parts[p].end());
   return leaves;
 }
 

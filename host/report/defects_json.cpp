@@ -11,22 +11,6 @@
 namespace dentmark::report {
 namespace {
 
-const char* class_name(protocol::DefectClass c) {
-  switch (c) {
-    case protocol::DefectClass::kDent:
-      return "dent";
-    case protocol::DefectClass::kBump:
-      return "bump";
-    case protocol::DefectClass::kHole:
-      return "hole";
-    case protocol::DefectClass::kDesignFeature:
-      return "design_feature";
-    case protocol::DefectClass::kNoise:
-      return "noise";
-  }
-  return "noise";
-}
-
 protocol::DefectClass class_from(const std::string& s, const std::string& where) {
   if (s == "dent") return protocol::DefectClass::kDent;
   if (s == "bump") return protocol::DefectClass::kBump;
@@ -107,6 +91,22 @@ std::vector<LabelledDefect> items(const nlohmann::json& root, const char* key, c
 }
 
 }  // namespace
+
+const char* class_name(protocol::DefectClass c) {
+  switch (c) {
+    case protocol::DefectClass::kDent:
+      return "dent";
+    case protocol::DefectClass::kBump:
+      return "bump";
+    case protocol::DefectClass::kHole:
+      return "hole";
+    case protocol::DefectClass::kDesignFeature:
+      return "design_feature";
+    case protocol::DefectClass::kNoise:
+      return "noise";
+  }
+  return "noise";
+}
 
 nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& source) {
   nlohmann::json j;

@@ -40,6 +40,27 @@ std::vector<PlantedDefect> place_defects(const ScanOptions& o, const DoorPanel& 
   return out;
 }
 
+// Through-holes: clear of design features and of the dents and bumps.
+std::vector<Eigen::Vector3d> place_holes(const ScanOptions& o, const DoorPanel& panel, std::mt19937_64& rng) {
+  std::vector<Eigen::Vector3d> out;  // x, y, diameter
+  std::uniform_real_distribution<double> ux(0.0, o.shape.width), uy(0.0, o.shape.height), u01(0.0, 1.0);
+  for (int k = 0; k < o.holes; ++k)
+    for (int attempt = 0; attempt < 2000; ++attempt) {
+      const Eigen::Vector3d h(ux(rng), uy(rng),
+                              o.min_hole_diameter + (o.max_hole_diameter - o.min_hole_diameter) * u01(rng));
+      if (panel.feature_distance(h.x(), h.y()) < 0.5 * h.z() + 0.04) continue;
+      bool clear = true;
+      for (const auto& d : panel.defects())
+        if ((d.centre - h.head<2>()).norm() < 0.5 * (d.diameter + h.z()) + 0.03) clear = false;
+      for (const auto& e : out)
+        if ((e.head<2>() - h.head<2>()).norm() < 0.5 * (e.z() + h.z()) + 0.03) clear = false;
+      if (!clear) continue;
+      out.push_back(h);
+      break;
+    }
+  return out;
+}
+
 }  // namespace
 
 SynthScan synthesize_scan(const ScanOptions& o) {
@@ -47,6 +68,9 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     throw std::invalid_argument("spacing must be in (0.01 mm, 50 mm)");
   if (!(o.noise >= 0.0 && o.noise < 0.01)) throw std::invalid_argument("noise must be in [0, 10 mm)");
   if (o.defects < 0 || o.defects > 200) throw std::invalid_argument("defects must be in [0, 200]");
+  if (o.holes < 0 || o.holes > 50) throw std::invalid_argument("holes must be in [0, 50]");
+  if (!(o.min_hole_diameter > 0 && o.max_hole_diameter >= o.min_hole_diameter && o.hole_backdrop > 0))
+    throw std::invalid_argument("hole sizes and backdrop must be positive and ordered");
   if (!(o.min_diameter > 0 && o.max_diameter >= o.min_diameter && o.min_depth > 0 &&
         o.max_depth >= o.min_depth))
     throw std::invalid_argument("defect size ranges must be positive and ordered");
@@ -59,6 +83,7 @@ SynthScan synthesize_scan(const ScanOptions& o) {
   std::mt19937_64 rng(splitmix(o.seed));
   const DoorPanel probe(o.shape, {});
   const DoorPanel panel(o.shape, place_defects(o, probe, rng));
+  const std::vector<Eigen::Vector3d> holes = place_holes(o, panel, rng);
 
   // Sensor pose: looking at the panel centre from 'standoff', tilted up to 12 degrees.
   std::uniform_real_distribution<double> tilt(-12.0, 12.0);
@@ -119,16 +144,17 @@ SynthScan synthesize_scan(const ScanOptions& o) {
       // Newton from the nominal plane; bracketing fallback on steep walls.
       double t = (centre.z() - C.z()) / d.z();
       bool ok = false;
-      for (int it = 0; it < 12; ++it) {
-        const double gt = g(t);
-        if (std::abs(gt) < 1e-10) {
-          ok = true;
-          break;
+      auto newton = [&](auto&& f) {
+        for (int it = 0; it < 12; ++it) {
+          const double ft = f(t);
+          if (std::abs(ft) < 1e-10) return true;
+          const double e = 1e-6, df = (f(t + e) - f(t - e)) / (2 * e);
+          if (!(std::abs(df) > 1e-6)) return false;
+          t -= ft / df;
         }
-        const double e = 1e-6, dg = (g(t + e) - g(t - e)) / (2 * e);
-        if (!(std::abs(dg) > 1e-6)) break;
-        t -= gt / dg;
-      }
+        return false;
+      };
+      ok = newton(g);
       if (!ok) {
         double a = (centre.z() + 0.04 - C.z()) / d.z(), ga = g(a);
         ok = false;
@@ -150,8 +176,19 @@ SynthScan synthesize_scan(const ScanOptions& o) {
         }
       }
       if (!ok) continue;
-      const Eigen::Vector3d p = C + t * d;
+      Eigen::Vector3d p = C + t * d;
       if (!panel.inside(p.x(), p.y())) continue;
+      for (const auto& hole : holes)
+        if (std::hypot(p.x() - hole.x(), p.y() - hole.y()) < 0.5 * hole.z()) {
+          // Through the hole onto the inner structure behind the skin.
+          ok = newton([&](double s) {
+            const Eigen::Vector3d q = C + s * d;
+            return q.z() - (panel.z_nominal(q.x(), q.y()) - o.hole_backdrop);
+          });
+          p = C + t * d;
+          break;
+        }
+      if (!ok) continue;
       bool dropped = false;
       for (const auto& dr : drops)
         if (std::hypot(p.x() - dr.x(), p.y() - dr.y()) < dr.z()) dropped = true;
@@ -211,6 +248,15 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     t.normal = T_sls_panel.linear() * panel.normal(d.centre.x(), d.centre.y());
     t.diameter = d.diameter;
     t.height = d.height;
+    scan.defects.push_back(t);
+  }
+  for (const Eigen::Vector3d& h : holes) {
+    TruthDefect t;
+    t.defect_class = "hole";
+    t.position = T_sls_panel * Eigen::Vector3d(h.x(), h.y(), panel.z_nominal(h.x(), h.y()));
+    t.normal = T_sls_panel.linear() * panel.normal(h.x(), h.y());
+    t.diameter = h.z();
+    t.height = 0.0;
     scan.defects.push_back(t);
   }
   auto feature_line = [&](const std::string& name, double radius, auto&& at, double len) {

@@ -110,7 +110,7 @@ void BM_QualityOverSeeds(benchmark::State& state) {
   state.counters["max_pos_err_mm"] = 1e3 * total.max_position_error;
   state.counters["mean_depth_err_um"] = 1e6 * total.mean_depth_error;
   state.counters["depth_ok_frac"] =
-      total.matched ? static_cast<double>(total.depth_within_tolerance) / total.matched : 0;
+      total.depth_matched ? static_cast<double>(total.depth_within_tolerance) / total.depth_matched : 0;
   state.counters["truth"] = total.truth;
 }
 BENCHMARK(BM_QualityOverSeeds)->Arg(20)->Iterations(1)->Unit(benchmark::kSecond);

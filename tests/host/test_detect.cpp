@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "dentmark/host/detect/detector.h"
+#include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
 #include "dentmark/host/report/scan_truth.h"
 #include "dentmark/sim/scan/sls_scan.h"
@@ -24,7 +25,8 @@ ScanRun run(const sim::scan::ScanOptions& o) {
   r.det = detect::detect(mesh, detect::DetectConfig{});
   const report::TruthFile truth = report::truth_from_scan(scan);
   report::DefectsFile found;
-  for (const auto& f : r.det.defects) found.defects.push_back({"", f.defect});
+  for (const auto& f : r.det.defects)
+    found.defects.push_back({report::class_name(f.defect.defect_class), f.defect});
   r.eval = report::evaluate(truth, found);
   return r;
 }
@@ -59,6 +61,33 @@ TEST(Detect, FindsTargetSizedDefectsWithPositionAndDepth) {
     // Every defect's normal agrees with the panel's within 5 degrees.
     for (const auto& f : r.det.defects)
       EXPECT_GT(f.defect.normal.dot(r.det.map.axes.row(2).transpose()), 0.9);
+  }
+}
+
+TEST(Detect, ThroughHolesAreHolesAndDropoutsAreNot) {
+  // Holes show the inner structure 60 mm behind the skin; dropouts show nothing. Both are
+  // empty discs on the skin of similar size; only the holes may be reported.
+  for (std::uint64_t seed : {21u, 22u}) {
+    SCOPED_TRACE(seed);
+    sim::scan::ScanOptions o = small_door(seed);
+    o.planted.resize(2);
+    o.holes = 3;
+    o.dropouts = 4;
+    o.outlier_fraction = 1e-4;
+    const ScanRun r = run(o);
+    EXPECT_EQ(r.eval.classes[2].total, 3);
+    EXPECT_EQ(r.eval.classes[2].found, 3);
+    EXPECT_EQ(r.eval.matched, 5);
+    EXPECT_EQ(r.eval.false_alarms, 0);
+    EXPECT_EQ(r.eval.wrong_sign, 0);
+    EXPECT_LE(r.eval.max_position_error, 0.001);
+    int holes = 0;
+    for (const auto& f : r.det.defects)
+      if (f.defect.defect_class == protocol::DefectClass::kHole) {
+        ++holes;
+        EXPECT_GT(f.defect.normal.dot(r.det.map.axes.row(2).transpose()), 0.9);
+      }
+    EXPECT_EQ(holes, 3);
   }
 }
 

@@ -16,6 +16,24 @@ LabelledDefect item(double x, double diameter, double height) {
   return d;
 }
 
+TEST(Evaluate, HolesMatchOnlyHoles) {
+  TruthFile t;
+  t.panel_area = 1.0;
+  t.defects = {item(0.0, 0.008, 0.0), item(0.1, 0.012, 2e-4)};
+  t.defects[0].defect_class = "hole";
+  DefectsFile d;
+  d.defects = {item(0.0005, 0.008, 0.0), item(0.1, 0.012, 0.0)};
+  d.defects[0].defect_class = "hole";  // the hole
+  d.defects[1].defect_class = "hole";  // a hole where a bump is: wrong kind
+  const Evaluation e = evaluate(t, d);
+  EXPECT_EQ(e.matched, 1);
+  EXPECT_EQ(e.wrong_sign, 1);
+  EXPECT_EQ(e.classes[2].total, 1);
+  EXPECT_EQ(e.classes[2].found, 1);
+  EXPECT_EQ(e.depth_matched, 0);  // a hole has no depth to compare
+  EXPECT_NEAR(e.max_position_error, 0.0005, 1e-9);
+}
+
 TEST(Evaluate, MatchesCountsAndErrors) {
   TruthFile t;
   t.panel_area = 2.0;
@@ -37,7 +55,8 @@ TEST(Evaluate, MatchesCountsAndErrors) {
   EXPECT_NEAR(e.max_position_error, 0.0008, 1e-9);
   EXPECT_NEAR(e.max_depth_error, 5e-6, 1e-12);
   EXPECT_EQ(e.depth_within_tolerance, 1);
-  ASSERT_EQ(e.classes.size(), 2u);
+  ASSERT_EQ(e.classes.size(), 3u);
+  EXPECT_EQ(e.classes[2].total, 0);  // no holes
   EXPECT_EQ(e.classes[0].total, 2);  // 12 mm / 60 µm and 20 mm / 1 mm
   EXPECT_EQ(e.classes[0].found, 1);
   EXPECT_EQ(e.classes[1].total, 2);  // 6 mm / 0.2 mm and 20 mm / 1 mm

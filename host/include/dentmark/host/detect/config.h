@@ -27,6 +27,10 @@ struct DetectConfig {
   double max_elongation = 4.0;
   // Side of the square patch for the defect's normal (m).
   double normal_patch = 0.03;
+  // Holes: an enclosed region no wider than max_hole_diameter (m) where the scanner saw
+  // more than hole_depth (m) behind the skin. Wider enclosed openings are design features.
+  double hole_depth = 0.003;
+  double max_hole_diameter = 0.02;
   int threads = 0;  // 0: all cores
 };
 

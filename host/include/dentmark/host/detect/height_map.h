@@ -20,6 +20,12 @@ struct HeightMap {
   std::vector<float> weight;    // Σ a / pixel² (0: no surface)
   std::vector<float> u, v, w;   // area-weighted mean point in map coordinates (m)
   std::vector<float> cos_tilt;  // |mean normal · w|: converts w offsets to normal offsets
+  // Leaves more than 'layer_depth' behind the front of their pixel's column, kept out of
+  // the map: seen through a hole, or outliers (map coordinates, m).
+  std::vector<Eigen::Vector3f> behind;
+  // The sensor in map coordinates, when the scan frame's origin is the sensor (w > 0.1 m).
+  bool has_viewpoint = false;
+  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();
 
   std::size_t size() const { return static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows); }
   Eigen::Vector3d to_scan(double pu, double pv, double pw) const {
@@ -31,7 +37,9 @@ struct HeightMap {
 };
 
 // Projects the leaves. 'w' points to the frame origin's side (the sensor's) of the plane.
-HeightMap build_height_map(const LinearOctree& tree, double pixel);
+// A single view sees only the front surface of each column: leaves more than layer_depth
+// behind the column's front go to 'behind' instead of being averaged into the pixel.
+HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth);
 
 // Reference surface: at each pixel, the weighted least-squares quadratic over a square
 // window (moving least squares), evaluated from fits at tile centres and blended

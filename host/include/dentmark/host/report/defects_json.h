@@ -23,6 +23,9 @@ struct SourceInfo {
   std::size_t vertices = 0, triangles = 0;
 };
 
+// "dent", "bump", "hole", "design_feature" or "noise".
+const char* class_name(protocol::DefectClass c);
+
 nlohmann::json defects_to_json(const detect::Detection& detection, const SourceInfo& source);
 // The defect list for the binary protocol (dent, bump, hole only).
 protocol::DefectList to_defect_list(const detect::Detection& detection);

@@ -23,18 +23,21 @@ struct ScanOptions {
   double min_depth = 5e-5, max_depth = 5e-4;         // m, |height|
   double outlier_fraction = 0.0;                     // fraction of points thrown 2..20 mm along the ray
   int dropouts = 0;                                  // missing discs (specular spots), 2..6 mm radius
-  bool shuffle = false;                              // triangles (and vertices) in random order
-  double standoff = 0.9;                             // m, sensor to panel centre
+  int holes = 0;  // through-holes (defects), the inner panel seen through them
+  double min_hole_diameter = 0.003, max_hole_diameter = 0.015;  // m
+  double hole_backdrop = 0.06;                                  // m, inner structure behind the skin
+  bool shuffle = false;                                         // triangles (and vertices) in random order
+  double standoff = 0.9;                                        // m, sensor to panel centre
   PanelShape shape;
   std::vector<PlantedDefect> planted;  // explicit defects (added to the random ones)
 };
 
 struct TruthDefect {
-  std::string defect_class;  // "dent" or "bump"
+  std::string defect_class;  // "dent", "bump" or "hole"
   Eigen::Vector3d position;  // sls, m: the defect's centre on the surface
   Eigen::Vector3d normal;    // sls, unit, towards the sensor
   double diameter = 0.0;     // m
-  double height = 0.0;       // m, signed
+  double height = 0.0;       // m, signed (0 for a hole)
 };
 
 // A design feature as sample points along it (sls) and a radius around them.

@@ -1,0 +1,118 @@
+#include "holes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <opencv2/imgproc.hpp>
+
+namespace dentmark::detect {
+
+std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviation,
+                                   const std::vector<float>& ref, double behind_depth, double max_diameter) {
+  const int rows = map.rows, cols = map.cols;
+  cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
+  const cv::Mat deep = deviation < static_cast<float>(-behind_depth);  // NaN compares false
+  const cv::Mat region = (weight <= 0.0f) | deep;
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(region, labels, stats, centroids, 8, CV_32S);
+  const double px_area = map.pixel * map.pixel;
+  const int* lab = labels.ptr<int>();
+  const float* dev = deviation.ptr<float>();
+
+  // Candidates: enclosed, small enough.
+  std::vector<int> index(static_cast<std::size_t>(n), -1);
+  std::vector<HoleRegion> cand;
+  for (int i = 1; i < n; ++i) {
+    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    if (x == 0 || y == 0 || x + w == cols || y + h == rows) continue;
+    const double d = 2.0 * std::sqrt(stats.at<int>(i, cv::CC_STAT_AREA) * px_area / std::numbers::pi);
+    if (d > max_diameter) continue;
+    index[static_cast<std::size_t>(i)] = static_cast<int>(cand.size());
+    cand.push_back({{}, 0, d, 0.0, {}});
+  }
+  if (cand.empty()) return {};
+  for (std::int32_t k = 0; k < rows * cols; ++k)
+    if (lab[k] > 0 && index[static_cast<std::size_t>(lab[k])] >= 0)
+      cand[static_cast<std::size_t>(index[static_cast<std::size_t>(lab[k])])].pixels.push_back(k);
+
+  // Ringed by skin: most pixels within two of the region are surface near the reference.
+  std::vector<char> ringed(cand.size(), 0);
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    int ring = 0, skin = 0;
+    const int own = lab[cand[c].pixels.front()];
+    std::vector<std::int32_t> seen;
+    for (auto k : cand[c].pixels)
+      for (int dr = -2; dr <= 2; ++dr)
+        for (int dc = -2; dc <= 2; ++dc) {
+          const int r = k / cols + dr, cc = k % cols + dc;
+          if (r < 0 || cc < 0 || r >= rows || cc >= cols) continue;
+          const int q = r * cols + cc;
+          if (lab[q] == own) continue;
+          seen.push_back(q);
+        }
+    std::sort(seen.begin(), seen.end());
+    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+    for (auto q : seen) {
+      ++ring;
+      if (map.weight[static_cast<std::size_t>(q)] > 0.0f && std::isfinite(dev[q]) &&
+          std::abs(dev[q]) <= behind_depth)
+        ++skin;
+    }
+    ringed[c] = ring > 0 && skin >= 0.7 * ring;
+  }
+
+  // Evidence: points behind the skin traced back towards the sensor (or straight along
+  // the map normal when the scan frame is not the sensor's) until they reach the skin's
+  // level: through a candidate, they were seen through it.
+  std::vector<std::vector<float>> depths(cand.size());
+  std::vector<std::vector<std::int32_t>> seen_deep(cand.size());
+  const Eigen::Vector3d up(0.0, 0.0, 1.0);
+  const double step = 0.5 * map.pixel;
+  auto trace = [&](const Eigen::Vector3d& b, std::int32_t deep_pixel) {
+    const Eigen::Vector3d dir = map.has_viewpoint ? (map.viewpoint - b).normalized() : up;
+    if (!(dir.z() > 0.05)) return;
+    double last_ref = std::numeric_limits<double>::quiet_NaN();
+    Eigen::Vector3d p = b;
+    for (int i = 0; i < 600; ++i, p += step * dir) {
+      const long k = map.pixel_of(p.x(), p.y());
+      if (k < 0) return;
+      const int c = lab[k] > 0 ? index[static_cast<std::size_t>(lab[k])] : -1;
+      if (c >= 0) {
+        if (std::isfinite(last_ref) && p.z() >= last_ref - behind_depth) {
+          depths[static_cast<std::size_t>(c)].push_back(static_cast<float>(last_ref - b.z()));
+          if (deep_pixel >= 0) seen_deep[static_cast<std::size_t>(c)].push_back(deep_pixel);
+          return;
+        }
+        continue;
+      }
+      if (map.weight[static_cast<std::size_t>(k)] > 0.0f && std::isfinite(ref[static_cast<std::size_t>(k)]) &&
+          !deep.data[k]) {
+        if (p.z() >= ref[static_cast<std::size_t>(k)] - behind_depth) return;  // hidden by the skin
+        last_ref = ref[static_cast<std::size_t>(k)];
+      }
+    }
+  };
+  for (const auto& b : map.behind) trace(b.cast<double>(), -1);
+  for (std::int32_t k = 0; k < rows * cols; ++k)
+    if (deep.data[k]) {
+      const auto q = static_cast<std::size_t>(k);
+      trace({map.u[q], map.v[q], map.w[q]}, k);
+    }
+
+  std::vector<HoleRegion> holes;
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    auto& d = depths[c];
+    const auto evidence = static_cast<int>(d.size());
+    if (!ringed[c] || evidence < 3 || 10 * evidence < static_cast<int>(cand[c].pixels.size())) continue;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+    cand[c].behind = evidence;
+    cand[c].seen_deep = std::move(seen_deep[c]);
+    cand[c].backdrop_depth = d[d.size() / 2];
+    holes.push_back(std::move(cand[c]));
+  }
+  return holes;
+}
+
+}  // namespace dentmark::detect
