@@ -5,6 +5,8 @@
 
 #include <filesystem>
 
+#include "dentmark/firmware/track/model_search.h"
+#include "dentmark/firmware/track/panel_model.h"
 #include "dentmark/firmware/track/sequence.h"
 #include "dentmark/firmware/track/tracker.h"
 #include "dentmark/sim/stereo/sequence_writer.h"
@@ -67,5 +69,23 @@ void BM_StartFromSeeds1280x1024(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(tracker.start(f.left[0], f.right[0], 0.0, f.seeds));
 }
 BENCHMARK(BM_StartFromSeeds1280x1024)->Unit(benchmark::kMillisecond);
+
+// Seedless start: the taught model searched over a whole stereo frame (a later frame
+// of the run, so the panel has moved since the teach frame).
+void BM_AcquireModel1280x1024(benchmark::State& state) {
+  const Frames& f = frames();
+  track::Tracker tracker(f.seq.calibration);
+  tracker.start(f.left[0], f.right[0], 0.0, f.seeds);
+  const track::PanelModel model = track::make_panel_model(f.left[0], f.right[0], tracker.reference().points(),
+                                                          tracker.left_points(), tracker.right_points());
+  int found = 0;
+  for (auto _ : state) {
+    const auto r = track::search_model(f.seq.calibration, f.left.back(), f.right.back(), model);
+    found = r.found;
+    benchmark::DoNotOptimize(r.T_now_taught);
+  }
+  state.counters["found"] = found;
+}
+BENCHMARK(BM_AcquireModel1280x1024)->Unit(benchmark::kMillisecond);
 
 }  // namespace
