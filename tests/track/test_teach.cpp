@@ -74,7 +74,14 @@ TEST_P(TeachAndAcquire, LaterPanelIsAcquiredWithoutSeedsAndTrackedWithinTheTarge
 
 INSTANTIATE_TEST_SUITE_P(AlongTheLine, TeachAndAcquire,
                          ::testing::Values(Later{0.04, 0.0, 1.0}, Later{0.15, 0.02, 0.7},
-                                           Later{-0.30, -0.03, 1.3}, Later{0.20, -0.02, 1.25}));
+                                           Later{-0.30, -0.03, 1.3}, Later{0.20, -0.02, 1.25}),
+                         [](const ::testing::TestParamInfo<Later>& p) {
+                           const auto n = [](double v) {
+                             return (v < 0 ? "Minus" : "") + std::to_string(std::lround(std::abs(v)));
+                           };
+                           return "Shift" + n(p.param.shift * 100) + "cmYaw" + n(p.param.yaw * 1000) +
+                                  "mradGain" + n(p.param.gain * 100) + "pc";
+                         });
 
 TEST(ModelSearch, TheFoundFeaturesAreTheTaughtOnes) {
   // The consensus must pick each taught corner, not a look-alike: its camR position
