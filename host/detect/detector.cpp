@@ -47,7 +47,8 @@ double measure_spacing(const ingest::Mesh& mesh) {
 // Robust sigma (1.4826 MAD) of the finite, selected values, sampled.
 double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
   std::vector<double> s;
-  const std::size_t total = values.total(), stride = std::max<std::size_t>(1, total / 300000);
+  // 60 k samples: the MAD to ~0.5 %, at a fifth of the cost of 300 k.
+  const std::size_t total = values.total(), stride = std::max<std::size_t>(1, total / 60000);
   const float* v = values.ptr<float>();
   const std::uint8_t* m = select.ptr<std::uint8_t>();
   for (std::size_t i = 0; i < total; i += stride)

@@ -61,6 +61,10 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
   const std::size_t n = map.size();
+  // A single view sees the front surface of each column. Leaves more than layer_depth
+  // behind the column's front were seen through a hole (or are outliers): kept aside.
+  // (Anchoring on the column's busiest leaf instead lets a hole's backdrop win the rim
+  // columns; an outlier in front only spoils its own pixel, which the median removes.)
   std::vector<float> front(n, -std::numeric_limits<float>::infinity());
   for (std::size_t i = 0; i < leaves.size(); ++i) {
     if (!(leaves[i].area > 0.0)) continue;

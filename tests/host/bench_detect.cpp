@@ -89,6 +89,7 @@ void BM_QualityOverSeeds(benchmark::State& state) {
       o.min_depth = 5e-5;
       o.outlier_fraction = seed % 2 ? 0.0 : 1e-4;
       o.dropouts = seed % 3;
+      o.holes = state.range(1) ? seed % 3 : 0;
       o.shuffle = seed % 2 == 0;
       auto scan = sim::scan::synthesize_scan(o);
       ingest::Mesh mesh;
@@ -97,7 +98,8 @@ void BM_QualityOverSeeds(benchmark::State& state) {
       const auto det = detect::detect(mesh, detect::DetectConfig{});
       const report::TruthFile truth = report::truth_from_scan(scan);
       report::DefectsFile found;
-      for (const auto& f : det.defects) found.defects.push_back({"", f.defect});
+      for (const auto& f : det.defects)
+        found.defects.push_back({report::class_name(f.defect.defect_class), f.defect});
       total.add(report::evaluate(truth, found));
     }
   }
@@ -105,6 +107,8 @@ void BM_QualityOverSeeds(benchmark::State& state) {
   state.counters["precision"] = total.precision();
   state.counters["recall_10mm_50um"] = total.classes[0].recall();
   state.counters["recall_5mm_100um"] = total.classes[1].recall();
+  state.counters["recall_holes"] = total.classes[2].recall();
+  state.counters["holes"] = total.classes[2].total;
   state.counters["false_alarms_per_m2"] = total.false_alarms_per_m2();
   state.counters["on_features"] = total.on_features;
   state.counters["max_pos_err_mm"] = 1e3 * total.max_position_error;
@@ -113,6 +117,7 @@ void BM_QualityOverSeeds(benchmark::State& state) {
       total.depth_matched ? static_cast<double>(total.depth_within_tolerance) / total.depth_matched : 0;
   state.counters["truth"] = total.truth;
 }
-BENCHMARK(BM_QualityOverSeeds)->Arg(20)->Iterations(1)->Unit(benchmark::kSecond);
+// Args: seeds, with holes (0/1: without holes the scans are those of earlier releases).
+BENCHMARK(BM_QualityOverSeeds)->Args({20, 0})->Args({20, 1})->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace

@@ -20,8 +20,8 @@ struct HeightMap {
   std::vector<float> weight;    // Σ a / pixel² (0: no surface)
   std::vector<float> u, v, w;   // area-weighted mean point in map coordinates (m)
   std::vector<float> cos_tilt;  // |mean normal · w|: converts w offsets to normal offsets
-  // Leaves more than 'layer_depth' behind the front of their pixel's column, kept out of
-  // the map: seen through a hole, or outliers (map coordinates, m).
+  // Leaves more than 'layer_depth' behind their column's front, kept out of the map:
+  // seen through a hole, or outliers (map coordinates, m).
   std::vector<Eigen::Vector3f> behind;
   // The sensor in map coordinates, when the scan frame's origin is the sensor (w > 0.1 m).
   bool has_viewpoint = false;
