@@ -217,11 +217,13 @@ bool Tracker::reacquire(std::size_t i, const Transform& motion, const ImagePyram
                         const ImagePyramid& right, Eigen::Vector3d& p) {
   const Eigen::Vector3d x = motion * reference_[i].p_camL;
   const cv::Point2f gl = calib_.project(Cam::kLeft, {x})[0], gr = calib_.project(Cam::kRight, {x})[0];
-  const auto l =
-      find_near(left.image(), reference_[i].template_left, gl, opt_.reacquire_radius, opt_.reacquire_ncc);
+  // Through the view change since the first frame: a corner that re-enters the view (or
+  // comes out from behind the arm) far down the line no longer looks like its grid template.
+  const auto l = find_near(left.image(), template_now(i, Cam::kLeft, motion), gl, opt_.reacquire_radius,
+                           opt_.reacquire_ncc);
   if (!l) return false;
-  const auto r =
-      find_near(right.image(), reference_[i].template_right, gr, opt_.reacquire_radius, opt_.reacquire_ncc);
+  const auto r = find_near(right.image(), template_now(i, Cam::kRight, motion), gr, opt_.reacquire_radius,
+                           opt_.reacquire_ncc);
   if (!r) return false;
   const Triangulation tri =
       triangulate(calib_, calib_.normalize(Cam::kLeft, {*l})[0], calib_.normalize(Cam::kRight, {*r})[0]);
