@@ -49,6 +49,18 @@ cv::Mat read_matrix(const cv::FileNode& node, const std::string& file, const std
   return m;
 }
 
+// OpenCV's parser says where in its message: "... 'FILE(LINE): what'".
+std::string parse_problem(const cv::Exception& e, const std::string& file) {
+  const auto at = e.msg.find(file + "(");
+  if (at == std::string::npos) return e.err;
+  std::string rest = e.msg.substr(at + file.size() + 1);
+  const auto close = rest.find("): ");
+  if (close == std::string::npos) return e.err;
+  std::string what = rest.substr(close + 3);
+  while (!what.empty() && (what.back() == '\n' || what.back() == '\'')) what.pop_back();
+  return "line " + rest.substr(0, close) + ": " + what;
+}
+
 }  // namespace
 
 std::vector<cv::Mat> model_pyramid(const cv::Mat& grey, int levels) {
@@ -144,7 +156,7 @@ PanelModel load_panel_model(const std::filesystem::path& path, cv::Size expected
   try {
     if (!fs.open(file, cv::FileStorage::READ)) throw TrackError(file + ": cannot open");
   } catch (const cv::Exception& e) {
-    throw TrackError(file + ": not readable as OpenCV FileStorage YAML (" + e.err + ")");
+    throw TrackError(file + ": not readable as OpenCV FileStorage YAML (" + parse_problem(e, file) + ")");
   }
   if (read_int(fs, file, "dentmark_panel_model", 0, 1000) != kFormatVersion)
     throw TrackError(file + ": field dentmark_panel_model: unsupported version (this build reads " +
