@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <random>
 
 #include "dentmark/firmware/track/model_search.h"
 #include "dentmark/firmware/track/panel_model.h"
@@ -195,6 +196,48 @@ TEST(PanelModel, BadModelFilesAreOneClearLineNamingFileAndField) {
   stereo::write_sequence(o, seq.path() / "s");
   e = error_of([&] { replay_sequence_with_model(seq.path() / "s", taught.model); });
   EXPECT_NE(e.find("model.yaml: field image_width"), std::string::npos) << e;
+}
+
+TEST(PanelModel, MutatedModelFilesNeverCrash) {
+  // Anything but a model or a TrackError (a crash, another exception, a huge
+  // allocation from a corrupted matrix header) fails this test.
+  const Taught taught;
+  std::string good;
+  {
+    std::ifstream in(taught.model);
+    good.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  TempDir tmp;
+  const auto path = tmp.path() / "mutated.yaml";
+  std::mt19937 rng(5);
+  int loaded = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    std::string bad = good;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const std::size_t at = rng() % bad.size();
+      switch (rng() % 3) {
+        case 0:
+          bad[at] = static_cast<char>(rng() % 256);
+          break;
+        case 1:
+          bad.erase(at, 1 + rng() % 8);
+          break;
+        default:
+          bad.insert(at, 1, ",:-.0e\n[9"[rng() % 10]);
+          break;
+      }
+      if (bad.empty()) bad = "x";
+    }
+    std::ofstream(path, std::ios::trunc) << bad;
+    try {
+      const PanelModel m = load_panel_model(path, {640, 512});
+      ++loaded;
+      for (const auto& f : m.features) ASSERT_EQ(f.left.size(), static_cast<std::size_t>(m.levels));
+    } catch (const TrackError&) {
+    }
+  }
+  std::printf("%d of 200 mutated models still loaded (edits inside numbers)\n", loaded);
 }
 
 TEST(PanelModel, TeachAtALaterFrameFollowsThePanelThere) {
