@@ -5,6 +5,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "dentmark/firmware/track/plane_view.h"
 #include "dentmark/firmware/track/template_align.h"
 
 namespace dentmark::track {
@@ -77,18 +78,9 @@ std::optional<StereoMatch> align_on_plane(const StereoCalibration& calib, const 
                                           const cv::Mat& left, const cv::Point2f& p_right,
                                           const cv::Point2f& p_left, const Eigen::Vector3d& x,
                                           const Eigen::Vector3d& n, const StereoMatchOptions& o) {
-  // Two directions in the plane, ~1 px long at the feature, and their images in both
-  // cameras: the local affine maps plane → pixels, and camL offsets → camR offsets.
-  const Eigen::Vector3d a =
-      (std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(n).normalized();
-  const Eigen::Vector3d b = n.cross(a);
-  const double step = x.z() / calib.left.K(0, 0);
-  const std::vector<Eigen::Vector3d> pts{x, x + step * a, x + step * b};
-  const auto pl = calib.project(Cam::kLeft, pts), pr = calib.project(Cam::kRight, pts);
-  const cv::Matx22d jl(pl[1].x - pl[0].x, pl[2].x - pl[0].x, pl[1].y - pl[0].y, pl[2].y - pl[0].y);
-  const cv::Matx22d jr(pr[1].x - pr[0].x, pr[2].x - pr[0].x, pr[1].y - pr[0].y, pr[2].y - pr[0].y);
-  if (std::abs(cv::determinant(jl)) < 1e-6) return std::nullopt;
-  const cv::Matx22d right_of_left = jr * jl.inv();
+  const auto change = plane_view_change(calib, x, n, Cam::kLeft, Cam::kRight);
+  if (!change) return std::nullopt;
+  const cv::Matx22d& right_of_left = *change;
   const cv::Mat templ = affine_patch(right, p_right, right_of_left, o.template_half);
   if (templ.empty()) return std::nullopt;
   AlignOptions ao;

@@ -1,11 +1,11 @@
 #include "dentmark/firmware/track/tracker.h"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "dentmark/common/geometry/rigid_fit.h"
+#include "dentmark/firmware/track/plane_view.h"
 #include "dentmark/firmware/track/pose_refine.h"
 #include "dentmark/firmware/track/template_align.h"
 #include "dentmark/firmware/track/track_error.h"
@@ -68,19 +68,9 @@ GridTemplate Tracker::template_now(std::size_t i, Cam cam, const Transform& moti
   // travels (up to ~10 degrees over a run), and a template matched by translation
   // alone drifts off the corner by a fraction of the neighbouring structure's apparent
   // shift, differently in the two cameras: depth error that grows with travel.
-  const Eigen::Vector3d& x = reference_[i].p_camL;
-  const Eigen::Vector3d& n = plane_normal_;
-  const Eigen::Vector3d a =
-      (std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(n).normalized();
-  const Eigen::Vector3d b = n.cross(a);
-  const double step = x.z() / calib_.left.K(0, 0);
-  const std::vector<Eigen::Vector3d> before{x, x + step * a, x + step * b};
-  const std::vector<Eigen::Vector3d> after{motion * before[0], motion * before[1], motion * before[2]};
-  const auto p0 = calib_.project(cam, before), p1 = calib_.project(cam, after);
-  const cv::Matx22d j0(p0[1].x - p0[0].x, p0[2].x - p0[0].x, p0[1].y - p0[0].y, p0[2].y - p0[0].y);
-  const cv::Matx22d j1(p1[1].x - p1[0].x, p1[2].x - p1[0].x, p1[1].y - p1[0].y, p1[2].y - p1[0].y);
-  if (std::abs(cv::determinant(j0)) < 1e-9) return grid;
-  const cv::Matx22d now_of_first = j1 * j0.inv();
+  const auto change = plane_view_change(calib_, reference_[i].p_camL, plane_normal_, cam, cam, motion);
+  if (!change) return grid;
+  const cv::Matx22d& now_of_first = *change;
   const cv::Matx22d d = now_of_first - cv::Matx22d::eye();
   // Below ~0.01 px across the patch the grid template itself is exact.
   if (std::max({std::abs(d(0, 0)), std::abs(d(0, 1)), std::abs(d(1, 0)), std::abs(d(1, 1))}) < 1e-3)
@@ -138,17 +128,13 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   // (stereo_match.h: translation alone leaves 0.1-0.5 px of disparity error, which the
   // reference would keep for the whole run and which grows into motion error as the
   // viewing geometry changes with travel).
-  for (int pass = 0; pass < 2 && found.size() >= 3; ++pass) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& f : found) c += f.p;
-    c /= static_cast<double>(found.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& f : found) cov += (f.p - c) * (f.p - c).transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    if (eig.eigenvalues()(1) < 1e-3 * eig.eigenvalues()(2)) break;  // collinear: no plane
-    const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Eigen::Vector3d> points;
+    for (const auto& f : found) points.push_back(f.p);
+    const auto normal = plane_normal(points);
+    if (!normal) break;
     for (auto& f : found) {
-      const auto m = align_on_plane(calib_, right, left, f.r, f.l, f.p, normal, opt_.stereo);
+      const auto m = align_on_plane(calib_, right, left, f.r, f.l, f.p, *normal, opt_.stereo);
       if (!m) continue;
       const Triangulation tri = triangulate(calib_, calib_.normalize(Cam::kLeft, {m->left})[0],
                                             calib_.normalize(Cam::kRight, {f.r})[0]);
@@ -186,14 +172,8 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   first_right_px_ = right_;
   first_left_n_ = calib_.normalize(Cam::kLeft, left_);
   first_right_n_ = calib_.normalize(Cam::kRight, right_);
-  plane_normal_.setZero();
-  {
-    const Eigen::Vector3d c = reference_.centroid();
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : reference_.points()) cov += (p - c) * (p - c).transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    if (eig.eigenvalues()(1) > 1e-3 * eig.eigenvalues()(2)) plane_normal_ = eig.eigenvectors().col(0);
-  }
+  const std::vector<Eigen::Vector3d> layout = reference_.points();
+  plane_normal_ = plane_normal(layout).value_or(Eigen::Vector3d::Zero());
   filter_ = MotionFilter(reference_.centroid(), opt_.filter);
   filter_.reset(t);
   reference_depth_ = reference_.centroid().z();
