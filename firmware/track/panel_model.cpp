@@ -137,7 +137,8 @@ void save_panel_model(const PanelModel& model, const std::filesystem::path& path
     fs << "]";
     fs.release();
   } catch (const cv::Exception& e) {
-    std::filesystem::remove(tmp);
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
     throw TrackError(file + ": cannot write (" + e.err + ")");
   }
   std::error_code ec;
