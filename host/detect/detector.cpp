@@ -603,9 +603,10 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;
-  // Bound on the peak: the octree build's 28-byte record per triangle next to the tree
-  // itself, and the height map with its working images.
-  st.working_bytes = tree.bytes() + 28 * mesh.triangles.size() + map.size() * (6 * 4 + 4 * 4 + 8);
+  // Bound on the peak: the octree build's 36-byte record per run of triangles (one per
+  // triangle at worst, random order) next to the tree itself, and the height map with its
+  // working images.
+  st.working_bytes = tree.bytes() + 36 * mesh.triangles.size() + map.size() * (6 * 4 + 4 * 4 + 8);
   lap("classify");
   return out;
 }
