@@ -1,9 +1,14 @@
 #include "dentmark/firmware/station/tracking_motion_source.h"
 
+#include <algorithm>
+
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/track/track_error.h"
 
 namespace dentmark::station {
+namespace {
+constexpr std::size_t kMaxPast = 100000;  // 2.8 h at 10 fps, 14 MB
+}  // namespace
 
 Transform extrapolate_motion(double t0, const Transform& M0, double t1, const Transform& M1, double t) {
   // The motion from t0 to t1, D = M1 · M0⁻¹, repeated proportionally: rotation vector
@@ -66,6 +71,7 @@ void TrackingMotionSource::publish(const track::FrameResult& r) {
   if (r.ok) {
     ++frames_;
     history_.push_back(e);
+    if (past_.size() < kMaxPast) past_.emplace_back(e.t, e.M_camL);
     while (history_.size() > 2 && history_.back().t - history_.front().t > 3.0) history_.pop_front();
   } else {
     ++failed_;
@@ -81,12 +87,24 @@ Transform TrackingMotionSource::predict(double t) {
   std::lock_guard lock(mutex_);
   if (history_.empty()) return latest_ ? latest_->M_camL : Transform::Identity();
   const MotionEstimate& last = history_.back();
+  constexpr double kWindow = 1.5;  // s
+  if (t < last.t - kWindow && !past_.empty()) {
+    // Recorded past: interpolate between the two estimates around t.
+    if (t <= past_.front().first) return past_.front().second;
+    const auto it =
+        std::lower_bound(past_.begin(), past_.end(), t, [](const auto& p, double x) { return p.first < x; });
+    if (it == past_.end()) return past_.back().second;
+    const auto& [t1, M1] = *it;
+    const auto& [t0, M0] = *(it - 1);
+    const double a = t1 > t0 ? (t - t0) / (t1 - t0) : 0.0;
+    const Transform d = M1 * M0.inverse();
+    return make_transform_rotvec(a * rotation_vector(d), a * d.translation()) * M0;
+  }
   // Least-squares line through the recent motions, each as the small rigid motion
   // D_i = M_i · M_last⁻¹ (rotation vector, translation) against time: the intercept
   // smooths the newest estimate and the slope is the velocity, both with far less
   // noise than a two-point difference. The window is short enough (kWindow) that a
   // line stop shows within a fraction of a second.
-  constexpr double kWindow = 1.5;  // s
   Eigen::Matrix<double, 6, 1> sy = Eigen::Matrix<double, 6, 1>::Zero(), sty = sy;
   double n = 0.0, st = 0.0, stt = 0.0;
   const Transform last_inv = last.M_camL.inverse();

@@ -62,6 +62,9 @@ class TrackingMotionSource final : public MotionSource {
   std::atomic<long> failed_{0};
   mutable std::mutex mutex_;
   std::deque<MotionEstimate> history_;  // newest last; ok estimates of the last few seconds
+  // Every ok estimate's time and motion, oldest first: the past is looked up, never
+  // extrapolated (the scan time lies tens of seconds back by the time a job runs).
+  std::vector<std::pair<double, Transform>> past_;
   std::optional<MotionEstimate> latest_;
 };
 
