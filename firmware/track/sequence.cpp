@@ -3,10 +3,10 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "dentmark/common/image/png_io.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
@@ -126,11 +126,10 @@ cv::Mat load_grey(const fs::path& path, cv::Size expected) {
   if (!fs::is_regular_file(path, ec)) throw TrackError(path.string() + ": no such file");
   cv::Mat img;
   try {
-    img = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    throw TrackError(path.string() + ": unreadable image (" + e.err + ")");
+    img = image::read_png(path.string());
+  } catch (const image::ImageError& e) {
+    throw TrackError(std::string(e.what()) + " (unreadable image)");
   }
-  if (img.empty()) throw TrackError(path.string() + ": unreadable image");
   if (img.size() != expected) {
     std::ostringstream os;
     os << path.string() << ": image is " << img.cols << "x" << img.rows << ", stereo.yaml says "
@@ -141,8 +140,6 @@ cv::Mat load_grey(const fs::path& path, cv::Size expected) {
   if (img.depth() != CV_8U) throw TrackError(path.string() + ": unsupported pixel type (need 8 or 16 bit)");
   if (img.channels() == 3)
     cv::cvtColor(img, img, cv::COLOR_BGR2GRAY);
-  else if (img.channels() == 4)
-    cv::cvtColor(img, img, cv::COLOR_BGRA2GRAY);
   else if (img.channels() != 1)
     throw TrackError(path.string() + ": unsupported channel count");
   return img;

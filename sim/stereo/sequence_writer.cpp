@@ -6,10 +6,10 @@
 #include <fstream>
 #include <iomanip>
 #include <numbers>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "dentmark/common/image/png_io.h"
 #include "dentmark/sim/stereo/panel_motion.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
@@ -89,7 +89,6 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
   frames << "index,t,left,right\n" << std::setprecision(12);
   truth << "index,t,m00,m01,m02,m03,m10,m11,m12,m13,m20,m21,m22,m23\n" << std::setprecision(15);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
-  const std::vector<int> png{cv::IMWRITE_PNG_COMPRESSION, 1};
   for (int k = 0; k < n; ++k) {
     const double t = k / o.fps;
     const Transform pose = motion.T_camL_panel(t);
@@ -112,7 +111,11 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
       cv::Mat img = renderer.render(eye, pose, ce, rng);
       if (o.colour) cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
       const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name.str();
-      if (!cv::imwrite(p.string(), img, png)) throw SequenceError(p.string() + ": cannot write image");
+      try {
+        image::write_png(p.string(), img, 1);
+      } catch (const image::ImageError& e) {
+        throw SequenceError(e.what());
+      }
     }
     frames << k << "," << t << ",left/" << name.str() << ",right/" << name.str() << "\n";
     const Transform m = motion.motion(t);
