@@ -11,8 +11,10 @@
 #include <numeric>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "dentmark/common/geometry/plane_fit.h"
+#include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "holes.h"
@@ -232,6 +234,17 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   const double sigma3 = std::max(scale_sigma.front(), 1e-9);
   const Eigen::Vector3d w_axis = map.axes.row(2).transpose();
 
+  // The scan's own samples under the candidates, for their apex depth (dense scans; on
+  // coarse ones a pixel holds a sample or two and the apex comes from the nearest vertex).
+  const bool coarse = scales.front() < 3;
+  std::optional<PixelSamples> samples;
+  if (!coarse) {
+    cv::Mat near_any;
+    cv::dilate(any, near_any, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
+    samples.emplace(mesh, map, std::vector<std::uint8_t>(near_any.datastart, near_any.dataend));
+  }
+  lap("samples");
+
   auto point_of = [&](std::int32_t k) { return Eigen::Vector3d(map.u[k], map.v[k], map.w[k]); };
   // Least-squares plane (common/geometry) over a normal_patch square around pixel (pr, pc),
   // pixels set in 'exclude' left out; oriented towards the sensor.
@@ -403,7 +416,6 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       return ws > 0 ? s / ws : 0.0;
     };
     // Peak: the component pixel of largest smoothed |deviation| (raw on coarse maps).
-    const bool coarse = scales.front() < 3;
     int peak = comp.pixels.front();
     double peak_val = 0.0;
     for (auto k : comp.pixels) {
@@ -470,6 +482,26 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       } else if (coarse) {
         height = at(peak / cols, peak % cols);
       }
+    }
+    if (samples) {
+      // The same apex from the vertices over the half-height disc.
+      const double rad = std::max(r_half, 2.5 * st.spacing);
+      const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
+      const int rp = static_cast<int>(std::ceil(rad / h)) + 1;
+      std::vector<Eigen::Vector3d> pts;
+      for (int r = std::max(0, peak / cols - rp); r <= std::min(rows - 1, peak / cols + rp); ++r)
+        for (int c = std::max(0, peak % cols - rp); c <= std::min(cols - 1, peak % cols + rp); ++c)
+          samples->append(r * cols + c, pts);
+      std::vector<ApexSample> near;
+      near.reserve(pts.size());
+      for (const auto& q : pts) {
+        const long k = map.pixel_of(q.x(), q.y());
+        if (k < 0 || !(map.weight[static_cast<std::size_t>(k)] > 0.0f)) continue;
+        const double refw =
+            local ? basis(q.x(), q.y()).dot(quad) : static_cast<double>(ref[static_cast<std::size_t>(k)]);
+        near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[static_cast<std::size_t>(k)]});
+      }
+      if (const auto apex = fit_apex_height(near, rad, sign)) height = *apex;
     }
     // Position: deviation-weighted centre of the half-height region, on the surface.
     Eigen::Vector3d pos = Eigen::Vector3d::Zero();

@@ -245,9 +245,12 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     t.defect_class = d.height < 0 ? "dent" : "bump";
     t.position =
         T_sls_panel * Eigen::Vector3d(d.centre.x(), d.centre.y(), panel.z(d.centre.x(), d.centre.y()));
-    t.normal = T_sls_panel.linear() * panel.normal(d.centre.x(), d.centre.y());
+    const Eigen::Vector3d n_panel = panel.normal(d.centre.x(), d.centre.y());
+    t.normal = T_sls_panel.linear() * n_panel;
     t.diameter = d.diameter;
-    t.height = d.height;
+    // The defect is planted along the panel's z; its depth is measured along the
+    // surface normal (as a gauge held normal to the panel reads it).
+    t.height = d.height * n_panel.z();
     scan.defects.push_back(t);
   }
   for (const Eigen::Vector3d& h : holes) {

@@ -49,19 +49,22 @@ sim::scan::ScanOptions small_door(std::uint64_t seed) {
 }
 
 TEST(Detect, FindsTargetSizedDefectsWithPositionAndDepth) {
+  int depth_ok = 0;
   for (std::uint64_t seed : {11u, 12u}) {
     SCOPED_TRACE(seed);
     const ScanRun r = run(small_door(seed));
     EXPECT_EQ(r.eval.matched, 5);
     EXPECT_EQ(r.eval.false_alarms, 0);
     EXPECT_LE(r.eval.max_position_error, 0.001);
-    // Depth within max(10 µm, 10 %) for most; never off by more than 25 µm.
-    EXPECT_GE(r.eval.depth_within_tolerance, 4);
-    EXPECT_LE(r.eval.max_depth_error, 25e-6);
+    // Depth (along the normal) within 15 µm, and nearly always within max(10 µm, 10 %)
+    // (the fit's noise is ~7 µm on a 0.1 mm dent at 20 µm scanner noise).
+    depth_ok += r.eval.depth_within_tolerance;
+    EXPECT_LE(r.eval.max_depth_error, 15e-6);
     // Every defect's normal agrees with the panel's within 5 degrees.
     for (const auto& f : r.det.defects)
       EXPECT_GT(f.defect.normal.dot(r.det.map.axes.row(2).transpose()), 0.9);
   }
+  EXPECT_GE(depth_ok, 9);
 }
 
 TEST(Detect, ThroughHolesAreHolesAndDropoutsAreNot) {

@@ -37,7 +37,7 @@ struct TruthDefect {
   Eigen::Vector3d position;  // sls, m: the defect's centre on the surface
   Eigen::Vector3d normal;    // sls, unit, towards the sensor
   double diameter = 0.0;     // m
-  double height = 0.0;       // m, signed (0 for a hole)
+  double height = 0.0;       // m, signed, along the surface normal (0 for a hole)
 };
 
 // A design feature as sample points along it (sls) and a radius around them.

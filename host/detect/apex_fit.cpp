@@ -1,0 +1,149 @@
+#include "dentmark/host/detect/apex_fit.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace dentmark::detect {
+
+PixelSamples::PixelSamples(const ingest::Mesh& mesh, const HeightMap& map,
+                           const std::vector<std::uint8_t>& select) {
+  std::vector<std::pair<std::int32_t, Eigen::Vector3f>> found;
+  const Eigen::Matrix3f axes = map.axes.cast<float>();
+  const Eigen::Vector3f origin = map.origin.cast<float>();
+  const auto n = static_cast<std::int64_t>(mesh.vertices.size());
+#pragma omp parallel
+  {
+    std::vector<std::pair<std::int32_t, Eigen::Vector3f>> mine;
+#pragma omp for schedule(static) nowait
+    for (std::int64_t i = 0; i < n; ++i) {
+      const Eigen::Vector3f q = axes * (mesh.vertices[static_cast<std::size_t>(i)] - origin);
+      if (!q.allFinite()) continue;
+      const long k = map.pixel_of(q.x(), q.y());
+      if (k >= 0 && select[static_cast<std::size_t>(k)]) mine.emplace_back(static_cast<std::int32_t>(k), q);
+    }
+#pragma omp critical
+    found.insert(found.end(), mine.begin(), mine.end());
+  }
+  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  keys_.reserve(found.size());
+  points_.reserve(found.size());
+  for (const auto& [k, q] : found) keys_.push_back(k), points_.push_back(q);
+}
+
+void PixelSamples::append(std::int32_t pixel, std::vector<Eigen::Vector3d>& out) const {
+  const auto range = std::equal_range(keys_.begin(), keys_.end(), pixel);
+  for (auto it = range.first; it != range.second; ++it)
+    out.push_back(points_[static_cast<std::size_t>(it - keys_.begin())].cast<double>());
+}
+
+namespace {
+
+using Vector5d = Eigen::Matrix<double, 5, 1>;
+using Matrix5d = Eigen::Matrix<double, 5, 5>;
+
+Vector5d basis(double x, double y) {
+  const double r2 = x * x + y * y;
+  Vector5d b;
+  b << 1, x, y, r2, r2 * r2;
+  return b;
+}
+
+double median_of(std::vector<double> v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+}  // namespace
+
+namespace {
+
+struct ApexFit {
+  Vector5d p;   // model coefficients over coordinates scaled by the radius
+  double x, y;  // the model's extreme (scaled), within half the radius
+  double value;
+};
+
+// One robust fit around (cx, cy) (m).
+std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx, double cy, double radius,
+                              double sign) {
+  constexpr std::size_t kMinSamples = 12;
+  std::vector<Eigen::Vector3d> use;  // x, y scaled to the radius; deviation
+  for (const auto& s : samples) {
+    const double x = (s.x - cx) / radius, y = (s.y - cy) / radius;
+    if (x * x + y * y <= 1.0 && std::isfinite(s.deviation)) use.emplace_back(x, y, s.deviation);
+  }
+  if (use.size() < kMinSamples) return std::nullopt;
+  {
+    // Gross outliers (millimetres off) would steer the first least-squares fit: drop
+    // values far outside the spread of the disc's values first.
+    std::vector<double> v;
+    for (const auto& q : use) v.push_back(q.z());
+    const double med = median_of(v);
+    for (auto& x : v) x = std::abs(x - med);
+    const double limit = 6.0 * 1.4826 * median_of(v);
+    std::erase_if(use, [&](const Eigen::Vector3d& q) { return std::abs(q.z() - med) > limit; });
+  }
+  Vector5d p = Vector5d::Zero();
+  for (int pass = 0; pass < 4; ++pass) {
+    if (use.size() < kMinSamples) return std::nullopt;
+    Matrix5d N = Matrix5d::Zero();
+    Vector5d rhs = Vector5d::Zero();
+    for (const auto& q : use) {
+      const Vector5d b = basis(q.x(), q.y());
+      N.selfadjointView<Eigen::Lower>().rankUpdate(b);
+      rhs += q.z() * b;
+    }
+    N.triangularView<Eigen::Upper>() = N.transpose();
+    const Eigen::LDLT<Matrix5d> ldlt(N);
+    if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 1e-9 * N(0, 0)) return std::nullopt;
+    p = ldlt.solve(rhs);
+    if (!p.allFinite()) return std::nullopt;
+    if (pass == 3) break;
+    // Drop residuals beyond 4 robust sigmas of the fit.
+    std::vector<double> res;
+    res.reserve(use.size());
+    for (const auto& q : use) res.push_back(std::abs(q.z() - basis(q.x(), q.y()).dot(p)));
+    const double limit = 4.0 * 1.4826 * median_of(res);
+    std::vector<Eigen::Vector3d> kept;
+    for (std::size_t j = 0; j < use.size(); ++j)
+      if (res[j] <= limit) kept.push_back(use[j]);
+    if (kept.size() == use.size()) break;
+    use.swap(kept);
+  }
+  // The model's extreme on a grid over the inner half of the disc.
+  ApexFit f{p, 0.0, 0.0, p(0)};
+  constexpr int kSteps = 10;
+  for (int i = -kSteps; i <= kSteps; ++i)
+    for (int j = -kSteps; j <= kSteps; ++j) {
+      const double x = 0.5 * i / kSteps, y = 0.5 * j / kSteps;
+      if (x * x + y * y > 0.25) continue;
+      const double v = basis(x, y).dot(p);
+      if (sign * v > sign * f.value) f.value = v, f.x = x, f.y = y;
+    }
+  return f;
+}
+
+}  // namespace
+
+std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign) {
+  if (!(radius > 0.0)) return std::nullopt;
+  // The radial terms are centred on the apex: re-centre on the model's extreme until
+  // it stays put (an off-centre quartic cannot follow the apex's flattening).
+  double cx = 0.0, cy = 0.0;
+  std::optional<ApexFit> fit;
+  for (int round = 0; round < 4; ++round) {
+    const auto f = fit_at(samples, cx, cy, radius, sign);
+    if (!f) break;
+    fit = f;
+    if (std::hypot(f->x, f->y) < 0.05) break;
+    cx += f->x * radius, cy += f->y * radius;
+    if (std::hypot(cx, cy) > 0.5 * radius) break;  // wandered off: keep the last fit
+  }
+  if (!fit) return std::nullopt;
+  return fit->value;
+}
+
+}  // namespace dentmark::detect
