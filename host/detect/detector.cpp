@@ -234,17 +234,6 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   const double sigma3 = std::max(scale_sigma.front(), 1e-9);
   const Eigen::Vector3d w_axis = map.axes.row(2).transpose();
 
-  // The scan's own samples under the candidates, for their apex depth (dense scans; on
-  // coarse ones a pixel holds a sample or two and the apex comes from the nearest vertex).
-  const bool coarse = scales.front() < 3;
-  std::optional<PixelSamples> samples;
-  if (!coarse) {
-    cv::Mat near_any;
-    cv::dilate(any, near_any, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
-    samples.emplace(mesh, map, std::vector<std::uint8_t>(near_any.datastart, near_any.dataend));
-  }
-  lap("samples");
-
   auto point_of = [&](std::int32_t k) { return Eigen::Vector3d(map.u[k], map.v[k], map.w[k]); };
   // Least-squares plane (common/geometry) over a normal_patch square around pixel (pr, pc),
   // pixels set in 'exclude' left out; oriented towards the sensor.
@@ -309,6 +298,31 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     cv::dilate(near_design, near_design,
                cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   }
+
+  // The scan's own samples under the dent and bump candidates, for their apex depth
+  // (dense scans; on coarse ones a pixel holds a sample or two and the apex comes from
+  // the nearest vertex). Design features need none.
+  const bool coarse = scales.front() < 3;
+  std::optional<PixelSamples> samples;
+  if (!coarse) {
+    std::vector<std::uint8_t> select(map.size(), 0);
+    for (int ci = 1; ci < ncomp; ++ci) {
+      const Component& comp = comps[static_cast<std::size_t>(ci)];
+      if (comp.pixels.empty() || design_reason_of(shape_of(comp))) continue;
+      if (std::any_of(comp.pixels.begin(), comp.pixels.end(),
+                      [&](std::int32_t k) { return near_design.data[k]; }))
+        continue;
+      int c0 = cols, c1 = 0, r0 = rows, r1 = 0;
+      for (auto k : comp.pixels)
+        c0 = std::min(c0, k % cols), c1 = std::max(c1, k % cols), r0 = std::min(r0, k / cols),
+        r1 = std::max(r1, k / cols);
+      for (int r = std::max(0, r0 - 2); r <= std::min(rows - 1, r1 + 2); ++r)
+        std::fill_n(select.begin() + r * cols + std::max(0, c0 - 2),
+                    std::min(cols - 1, c1 + 2) - std::max(0, c0 - 2) + 1, 1);
+    }
+    samples.emplace(mesh, map, select);
+  }
+  lap("samples");
 
   for (int ci = 1; ci < ncomp; ++ci) {
     const Component& comp = comps[static_cast<std::size_t>(ci)];
