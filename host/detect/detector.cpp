@@ -298,6 +298,20 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     cv::dilate(near_design, near_design,
                cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   }
+  // A piece of one: mostly within 8 mm of it, or peaking there (a handle's rim is
+  // strongest at the handle). A defect whose edge merely reaches into the wide, shallow
+  // band a crease leaves in the deviation keeps its own peak and stays a defect.
+  auto next_to_design = [&](const Component& comp) {
+    std::ptrdiff_t near = 0;
+    std::int32_t peak = comp.pixels.front();
+    float peak_dev = 0.0f;
+    for (auto k : comp.pixels) {
+      near += near_design.data[k] != 0;
+      const float dv = std::abs(dev.at<float>(k / cols, k % cols));
+      if (dv > peak_dev) peak_dev = dv, peak = k;
+    }
+    return near > 0 && (2 * near > static_cast<std::ptrdiff_t>(comp.pixels.size()) || near_design.data[peak]);
+  };
 
   // The scan's own samples under the dent and bump candidates, for their apex depth
   // (dense scans; on coarse ones a pixel holds a sample or two and the apex comes from
@@ -308,10 +322,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     std::vector<std::uint8_t> select(map.size(), 0);
     for (int ci = 1; ci < ncomp; ++ci) {
       const Component& comp = comps[static_cast<std::size_t>(ci)];
-      if (comp.pixels.empty() || design_reason_of(shape_of(comp))) continue;
-      if (std::any_of(comp.pixels.begin(), comp.pixels.end(),
-                      [&](std::int32_t k) { return near_design.data[k]; }))
-        continue;
+      if (comp.pixels.empty() || design_reason_of(shape_of(comp)) || next_to_design(comp)) continue;
       int c0 = cols, c1 = 0, r0 = rows, r1 = 0;
       for (auto k : comp.pixels)
         c0 = std::min(c0, k % cols), c1 = std::max(c1, k % cols), r0 = std::min(r0, k / cols),
@@ -336,12 +347,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     d.area = area;
     d.normal = w_axis;
     const char* design_reason = design_reason_of(shape);
-    if (!design_reason)
-      for (auto k : comp.pixels)
-        if (near_design.data[k]) {
-          design_reason = "next to a design feature";
-          break;
-        }
+    if (!design_reason && next_to_design(comp)) design_reason = "next to a design feature";
     if (design_reason) {
       Eigen::Vector3d p = Eigen::Vector3d::Zero();
       double ws = 0.0, extreme = 0.0;
@@ -386,7 +392,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     for (int r = br0; r <= br1; ++r)
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
-        if (!(map.weight[k] > 0.0f) || any.data[k] || edge_zone.data[k]) continue;
+        if (!(map.weight[k] > 0.0f) || any.data[k] || edge_zone.data[k] || hole_zone.data[k]) continue;
         // Keep the defect's faint rim out of its own reference.
         if (c >= c0 - guard && c <= c1 + guard && r >= r0 - guard && r <= r1 + guard) continue;
         const auto b = basis(map.u[k], map.v[k]);

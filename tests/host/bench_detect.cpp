@@ -4,7 +4,6 @@
 //   BM_ReadDetectWrite:     binary PLY read + detection + JSON write, the whole job.
 //   BM_QualityOverSeeds:    recall / false alarms / errors over many seeds (counters).
 #include <benchmark/benchmark.h>
-
 #include <malloc.h>
 
 #include <filesystem>
