@@ -341,18 +341,38 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       const auto count = static_cast<std::int64_t>(e.count);
       std::int64_t bad = count;  // first record that is not a valid triangle
       mesh.triangles.resize(static_cast<std::size_t>(count));
+      // The usual scanner layout (uchar count, 32-bit indices, native byte order) is
+      // read with plain loads; anything else through the typed loader.
+      const bool native32 = !swap && ct == Scalar::kU8 && (it == Scalar::kI32 || it == Scalar::kU32);
+      if (native32) {
 #pragma omp parallel for schedule(static) reduction(min : bad)
-      for (std::int64_t r = 0; r < count; ++r) {
-        const char* q = src + r * static_cast<std::int64_t>(rec);
-        const std::int64_t a = load_index(q + cs, it, swap), b = load_index(q + cs + is, it, swap),
-                           c = load_index(q + cs + 2 * is, it, swap);
-        if (load_index(q, ct, swap) != 3 || a < 0 || b < 0 || c < 0 || static_cast<std::uint64_t>(a) >= nv ||
-            static_cast<std::uint64_t>(b) >= nv || static_cast<std::uint64_t>(c) >= nv) {
-          bad = std::min(bad, r);
-          continue;
+        for (std::int64_t r = 0; r < count; ++r) {
+          const char* q = src + r * static_cast<std::int64_t>(rec);
+          std::uint32_t v[3];
+          std::memcpy(v, q + 1, sizeof v);
+          // As signed (int32) a negative index is >= 2^31 as unsigned: rejected as well.
+          if (static_cast<std::uint8_t>(q[0]) != 3 || v[0] >= nv || v[1] >= nv || v[2] >= nv ||
+              (it == Scalar::kI32 && (v[0] | v[1] | v[2]) >= 0x80000000u)) {
+            bad = std::min(bad, r);
+            continue;
+          }
+          mesh.triangles[static_cast<std::size_t>(r)] = {v[0], v[1], v[2]};
         }
-        mesh.triangles[static_cast<std::size_t>(r)] = {
-            static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(c)};
+      } else {
+#pragma omp parallel for schedule(static) reduction(min : bad)
+        for (std::int64_t r = 0; r < count; ++r) {
+          const char* q = src + r * static_cast<std::int64_t>(rec);
+          const std::int64_t a = load_index(q + cs, it, swap), b = load_index(q + cs + is, it, swap),
+                             c = load_index(q + cs + 2 * is, it, swap);
+          if (load_index(q, ct, swap) != 3 || a < 0 || b < 0 || c < 0 ||
+              static_cast<std::uint64_t>(a) >= nv || static_cast<std::uint64_t>(b) >= nv ||
+              static_cast<std::uint64_t>(c) >= nv) {
+            bad = std::min(bad, r);
+            continue;
+          }
+          mesh.triangles[static_cast<std::size_t>(r)] = {
+              static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(c)};
+        }
       }
       if (bad == count) {
         off = size;

@@ -260,10 +260,11 @@ namespace {
 
 // The common scanner layout (only triangles, one list property) takes a parallel path;
 // it must read the same and reject the same.
-std::string triangle_block_ply(int bad_index) {
+std::string triangle_block_ply(int bad_index, const std::string& index_type = "uint") {
   std::string s =
       "ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
-      "property float z\nelement face 3\nproperty list uchar uint vertex_indices\nend_header\n";
+      "property float z\nelement face 3\nproperty list uchar " +
+      index_type + " vertex_indices\nend_header\n";
   for (auto& v : kV)
     for (int a = 0; a < 3; ++a) put<float>(s, v[a]);
   for (auto t : {std::array<int, 3>{0, 1, 2}, {0, 2, 3}, {1, bad_index, 2}}) {
@@ -285,6 +286,17 @@ TEST(Ingest, BinaryTriangleBlockFastPath) {
     EXPECT_NE(std::string(e.what()).find("byte " + std::to_string(at) + ": vertex index 5 out of range"),
               std::string::npos)
         << e.what();
+  }
+  // Signed 32-bit indices take the same plain-load path: a negative one is rejected.
+  expect_reference(read_mesh(write_file("y.ply", triangle_block_ply(4, "int"))));
+  for (int negative : {-1, -2147483647 - 1}) {
+    try {
+      read_mesh(write_file("z.ply", triangle_block_ply(negative, "int")));
+      ADD_FAILURE() << "index " << negative << " accepted";
+    } catch (const IngestError& e) {
+      EXPECT_NE(std::string(e.what()).find("vertex index " + std::to_string(negative)), std::string::npos)
+          << e.what();
+    }
   }
 }
 
