@@ -32,6 +32,13 @@ void register_stereo(CLI::App& /*app*/, CLI::App& synth) {
   cmd->add_option("--stop-at", opt->stop_at, "The line stops at this time, s")->capture_default_str();
   cmd->add_option("--stop-for", opt->stop_for, "... for this long, s")->capture_default_str();
   cmd->add_flag("--colour", opt->colour, "Write colour (BGR) PNGs");
+  cmd->add_option("--start-offset", opt->start_offset,
+                  "The run starts this far further along the line than the centred run, m")
+      ->capture_default_str();
+  cmd->add_option("--extra-yaw", opt->extra_yaw, "The door turned by this much more about camL y, rad")
+      ->capture_default_str();
+  cmd->add_option("--gain", opt->gain, "Overall lighting gain (1: as taught)")->capture_default_str();
+  cmd->add_flag("--rear-door", opt->rear_door, "Render the rear door (a different panel model)");
   cmd->add_option("--seed", opt->seed, "Random seed")->capture_default_str();
   cmd->callback([opt, out] {
     try {
