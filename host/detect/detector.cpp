@@ -313,12 +313,11 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     return near > 0 && (2 * near > static_cast<std::ptrdiff_t>(comp.pixels.size()) || near_design.data[peak]);
   };
 
-  // The scan's own samples under the dent and bump candidates, for their apex depth
-  // (dense scans; on coarse ones a pixel holds a sample or two and the apex comes from
-  // the nearest vertex). Design features need none.
+  // The scan's own samples under the dent and bump candidates, for their apex depth.
+  // Design features need none.
   const bool coarse = scales.front() < 3;
   std::optional<PixelSamples> samples;
-  if (!coarse) {
+  {
     std::vector<std::uint8_t> select(map.size(), 0);
     for (int ci = 1; ci < ncomp; ++ci) {
       const Component& comp = comps[static_cast<std::size_t>(ci)];
@@ -503,7 +502,10 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
         height = at(peak / cols, peak % cols);
       }
     }
-    if (samples) {
+    // On coarse scans (a pixel of one or two samples) a defect narrower than three
+    // samples in radius has too few under its apex for a fit: its extreme vertex is taken.
+    bool apex_fitted = false;
+    if (samples && (!coarse || r_half >= 2.5 * st.spacing)) {
       // The same apex from the vertices over the half-height disc.
       const double rad = std::max(r_half, 2.5 * st.spacing);
       const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
@@ -521,7 +523,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
             local ? basis(q.x(), q.y()).dot(quad) : static_cast<double>(ref[static_cast<std::size_t>(k)]);
         near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[static_cast<std::size_t>(k)]});
       }
-      if (const auto apex = fit_apex_height(near, rad, sign)) height = *apex;
+      if (const auto apex = fit_apex_height(near, rad, sign)) height = *apex, apex_fitted = true;
     }
     // Position: deviation-weighted centre of the half-height region, on the surface.
     Eigen::Vector3d pos = Eigen::Vector3d::Zero();
@@ -534,7 +536,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       ws += wk;
     }
     pos /= ws;
-    if (coarse && local) {
+    if (coarse && local && !apex_fitted) {
       // A pixel spans several samples on a coarse scan and averages a narrow apex
       // away: take the apex from the mesh vertices that fall in the candidate.
       double best = 0.0;
