@@ -11,6 +11,14 @@
 namespace dentmark {
 namespace {
 
+// Full 1.0 x 0.8 m doors take a few seconds here and many minutes in a Debug build under
+// AddressSanitizer; the smaller scans of the other tests run the same code there.
+#if defined(__SANITIZE_ADDRESS__)
+#define SKIP_FULL_DOOR_UNDER_SANITIZER() GTEST_SKIP() << "full-door scan: run by the native preset"
+#else
+#define SKIP_FULL_DOOR_UNDER_SANITIZER() (void)0
+#endif
+
 struct ScanRun {
   report::Evaluation eval;
   detect::Detection det;
@@ -95,6 +103,7 @@ TEST(Detect, ThroughHolesAreHolesAndDropoutsAreNot) {
 }
 
 TEST(Detect, FullDoorsWithHolesNextToTheCreaseHaveNoMissesAndNoFalseAlarms) {
+  SKIP_FULL_DOOR_UNDER_SANITIZER();
   // Two full doors that once failed: on 1010 three dents whose edges reached into the
   // crease's wide deviation band were absorbed as 'next to a design feature'; on 1020 the
   // far wall seen through two holes pulled the local reference of the skin around them
@@ -137,6 +146,7 @@ TEST(Detect, CoarseNoisyScanMeasuresTheApexByAFitNotTheNoisiestVertex) {
 }
 
 TEST(Detect, NoisyScanReportsNothingOnTheStripBetweenWindowAndBorder) {
+  SKIP_FULL_DOOR_UNDER_SANITIZER();
   // At 40 µm noise (twice the target scans') pieces of the narrow strip between the
   // window and the lower border, which no quadratic follows, once came out as dents of
   // 2-3 mm. Their surroundings are rough against the noise; a defect's are not.
