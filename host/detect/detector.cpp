@@ -11,7 +11,6 @@
 #include <numeric>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-#include <optional>
 
 #include "dentmark/common/geometry/plane_fit.h"
 #include "dentmark/host/detect/apex_fit.h"
@@ -321,8 +320,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   // The scan's own samples under the dent and bump candidates, for their apex depth.
   // Design features need none.
   const bool coarse = scales.front() < 3;
-  std::optional<PixelSamples> samples;
-  {
+  const PixelSamples samples = [&] {
     std::vector<std::uint8_t> select(map.size(), 0);
     for (int ci = 1; ci < ncomp; ++ci) {
       const Component& comp = comps[static_cast<std::size_t>(ci)];
@@ -335,8 +333,8 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
         std::fill_n(select.begin() + r * cols + std::max(0, c0 - 2),
                     std::min(cols - 1, c1 + 2) - std::max(0, c0 - 2) + 1, 1);
     }
-    samples.emplace(mesh, map, select);
-  }
+    return PixelSamples(mesh, map, select);
+  }();
   lap("samples");
 
   for (int ci = 1; ci < ncomp; ++ci) {
@@ -517,10 +515,11 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
         height = at(peak / cols, peak % cols);
       }
     }
-    // On coarse scans (a pixel of one or two samples) a defect narrower than three
-    // samples in radius has too few under its apex for a fit: its extreme vertex is taken.
+    // On coarse scans (a pixel of one or two samples) a defect whose half-height radius
+    // spans fewer than 2.5 samples has too few under its apex for a fit: its extreme
+    // vertex is taken below.
     bool apex_fitted = false;
-    if (samples && (!coarse || r_half >= 2.5 * st.spacing)) {
+    if (!coarse || r_half >= 2.5 * st.spacing) {
       // The same apex from the vertices over the half-height disc.
       const double rad = std::max(r_half, 2.5 * st.spacing);
       const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
@@ -528,7 +527,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       std::vector<Eigen::Vector3d> pts;
       for (int r = std::max(0, peak / cols - rp); r <= std::min(rows - 1, peak / cols + rp); ++r)
         for (int c = std::max(0, peak % cols - rp); c <= std::min(cols - 1, peak % cols + rp); ++c)
-          samples->append(r * cols + c, pts);
+          samples.append(r * cols + c, pts);
       std::vector<ApexSample> near;
       near.reserve(pts.size());
       for (const auto& q : pts) {
