@@ -3,7 +3,8 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <numeric>
+
+#include "median.h"
 
 namespace dentmark::detect {
 
@@ -48,12 +49,6 @@ Vector5d basis(double x, double y) {
   Vector5d b;
   b << 1, x, y, r2, r2 * r2;
   return b;
-}
-
-double median_of(std::vector<double> v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 }  // namespace

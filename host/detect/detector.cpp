@@ -17,6 +17,7 @@
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "holes.h"
+#include "median.h"
 
 namespace dentmark::detect {
 namespace {
@@ -27,13 +28,6 @@ using Clock = std::chrono::steady_clock;
 // times the map's deviation noise is not on a smooth panel: it cannot be measured as a
 // dent there, and is taken as part of the design around it.
 constexpr double kRoughRing = 3.5;
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // Median edge length over a sample of triangles: the scan's point spacing.
 double measure_spacing(const ingest::Mesh& mesh) {
@@ -525,18 +519,18 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
       const int rp = static_cast<int>(std::ceil(rad / h)) + 1;
       std::vector<Eigen::Vector3d> pts;
-      for (int r = std::max(0, peak / cols - rp); r <= std::min(rows - 1, peak / cols + rp); ++r)
-        for (int c = std::max(0, peak % cols - rp); c <= std::min(cols - 1, peak % cols + rp); ++c)
-          samples.append(r * cols + c, pts);
       std::vector<ApexSample> near;
-      near.reserve(pts.size());
-      for (const auto& q : pts) {
-        const long k = map.pixel_of(q.x(), q.y());
-        if (k < 0 || !(map.weight[static_cast<std::size_t>(k)] > 0.0f)) continue;
-        const double refw =
-            local ? basis(q.x(), q.y()).dot(quad) : static_cast<double>(ref[static_cast<std::size_t>(k)]);
-        near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[static_cast<std::size_t>(k)]});
-      }
+      for (int r = std::max(0, peak / cols - rp); r <= std::min(rows - 1, peak / cols + rp); ++r)
+        for (int c = std::max(0, peak % cols - rp); c <= std::min(cols - 1, peak % cols + rp); ++c) {
+          const int k = r * cols + c;
+          if (!(map.weight[k] > 0.0f)) continue;
+          pts.clear();
+          samples.append(k, pts);
+          for (const auto& q : pts) {
+            const double refw = local ? basis(q.x(), q.y()).dot(quad) : static_cast<double>(ref[k]);
+            near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[k]});
+          }
+        }
       if (const auto apex = fit_apex_height(near, rad, sign)) height = *apex, apex_fitted = true;
     }
     // Position: deviation-weighted centre of the half-height region, on the surface.
