@@ -52,19 +52,20 @@ int run_detect(const DetectArgs& a) {
     log::error(e.what());
     return 2;
   }
-  ingest::Mesh mesh;
+  ingest::Scan scan;
   ingest::ReadOptions ro;
   ro.scale_to_m = a.units == "mm" ? 1e-3 : 1.0;
   if (tty) ro.progress = [](double f) { std::fprintf(stderr, "\rreading %3.0f %%", 100 * f); };
   try {
-    mesh = ingest::read_mesh(a.scan, ro);
+    scan = ingest::open_scan(a.scan, ro);
   } catch (const ingest::IngestError& e) {
     if (tty) std::fprintf(stderr, "\n");
     log::error(e.what());
     return 2;
   }
   const auto t_read = Clock::now();
-  if (tty) std::fprintf(stderr, "\rdetecting on %zu triangles...", mesh.triangles.size());
+  const ingest::MeshView& mesh = scan.mesh;
+  if (tty) std::fprintf(stderr, "\rdetecting on %zu triangles...", mesh.triangle_count());
   detect::Detection det;
   try {
     det = detect::detect(mesh, config);
@@ -78,7 +79,7 @@ int run_detect(const DetectArgs& a) {
   const auto t_detect = Clock::now();
   try {
     if (!a.out.empty()) protocol::write_dml(a.out, report::to_defect_list(det));
-    report::SourceInfo src{a.scan, mesh.input_points, mesh.triangles.size()};
+    report::SourceInfo src{a.scan, scan.input_points, mesh.triangle_count()};
     if (!a.json.empty()) {
       auto j = report::defects_to_json(det, src);
       j["timing"]["write"] = 0.0;
@@ -91,7 +92,7 @@ int run_detect(const DetectArgs& a) {
     return 1;
   }
   const auto end = Clock::now();
-  std::printf("%s: %zu triangles, %zu defects (%zu other features)\n", a.scan.c_str(), mesh.triangles.size(),
+  std::printf("%s: %zu triangles, %zu defects (%zu other features)\n", a.scan.c_str(), mesh.triangle_count(),
               det.defects.size(), det.features.size());
   for (const auto& f : det.defects) {
     const auto& d = f.defect;

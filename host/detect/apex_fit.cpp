@@ -8,18 +8,18 @@
 
 namespace dentmark::detect {
 
-PixelSamples::PixelSamples(const ingest::Mesh& mesh, const HeightMap& map,
+PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
                            const std::vector<std::uint8_t>& select) {
   std::vector<std::pair<std::int32_t, Eigen::Vector3f>> found;
   const Eigen::Matrix3f axes = map.axes.cast<float>();
   const Eigen::Vector3f origin = map.origin.cast<float>();
-  const auto n = static_cast<std::int64_t>(mesh.vertices.size());
+  const auto n = static_cast<std::int64_t>(mesh.vertex_count());
 #pragma omp parallel
   {
     std::vector<std::pair<std::int32_t, Eigen::Vector3f>> mine;
 #pragma omp for schedule(static) nowait
     for (std::int64_t i = 0; i < n; ++i) {
-      const Eigen::Vector3f q = axes * (mesh.vertices[static_cast<std::size_t>(i)] - origin);
+      const Eigen::Vector3f q = axes * (mesh.vertex(static_cast<std::size_t>(i)) - origin);
       if (!q.allFinite()) continue;
       const long k = map.pixel_of(q.x(), q.y());
       if (k >= 0 && select[static_cast<std::size_t>(k)]) mine.emplace_back(static_cast<std::int32_t>(k), q);

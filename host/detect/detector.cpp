@@ -30,16 +30,15 @@ using Clock = std::chrono::steady_clock;
 constexpr double kRoughRing = 3.5;
 
 // Median edge length over a sample of triangles: the scan's point spacing.
-double measure_spacing(const ingest::Mesh& mesh) {
-  const std::size_t n = mesh.triangles.size(), stride = std::max<std::size_t>(1, n / 50000);
+double measure_spacing(const ingest::MeshView& mesh) {
+  const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
   std::vector<double> e;
   e.reserve(n / stride + 1);
   for (std::size_t i = 0; i < n; i += stride) {
-    const auto& t = mesh.triangles[i];
+    const auto t = mesh.triangle(i);
+    const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
     // Shortest edge: on grid meshes the others are diagonals.
-    const auto& V = mesh.vertices;
-    e.push_back(static_cast<double>(
-        std::min({(V[t[0]] - V[t[1]]).norm(), (V[t[1]] - V[t[2]]).norm(), (V[t[2]] - V[t[0]]).norm()})));
+    e.push_back(static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()})));
   }
   return median_of(std::move(e));
 }
@@ -66,7 +65,7 @@ struct Component {
 
 }  // namespace
 
-Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
+Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   Detection out;
   auto t0 = Clock::now();
   auto lap = [&](const char* stage) {
@@ -75,8 +74,8 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
     t0 = now;
   };
   DetectionStats& st = out.stats;
-  st.vertices = mesh.vertices.size();
-  st.triangles = mesh.triangles.size();
+  st.vertices = mesh.vertex_count();
+  st.triangles = mesh.triangle_count();
   st.spacing = measure_spacing(mesh);
   const double h = std::max(cfg.finest_node_size, 2.0 * st.spacing);
   st.leaf_size = h;
@@ -548,8 +547,8 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
       // A pixel spans several samples on a coarse scan and averages a narrow apex
       // away: take the apex from the mesh vertices that fall in the candidate.
       double best = 0.0;
-      for (const auto& vx : mesh.vertices) {
-        const Eigen::Vector3d q = map.to_map(vx.cast<double>());
+      for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
+        const Eigen::Vector3d q = map.to_map(mesh.vertex(i).cast<double>());
         const long k = map.pixel_of(q.x(), q.y());
         if (k < 0 || labels.at<int>(static_cast<int>(k / cols), static_cast<int>(k % cols)) != ci) continue;
         const double dv = (q.z() - basis(q.x(), q.y()).dot(quad)) * map.cos_tilt[static_cast<std::size_t>(k)];
@@ -671,7 +670,7 @@ Detection detect(const ingest::Mesh& mesh, const DetectConfig& cfg) {
   // Bound on the peak: the octree build's 36-byte record per run of triangles (one per
   // triangle at worst, random order) next to the tree itself, and the height map with its
   // working images.
-  st.working_bytes = tree.bytes() + 36 * mesh.triangles.size() + map.size() * (6 * 4 + 4 * 4 + 8);
+  st.working_bytes = tree.bytes() + 36 * mesh.triangle_count() + map.size() * (6 * 4 + 4 * 4 + 8);
   lap("classify");
   return out;
 }

@@ -152,10 +152,8 @@ int thread_id() {
 
 }  // namespace
 
-std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGrid& grid) {
-  const auto& V = mesh.vertices;
-  const auto& T = mesh.triangles;
-  const std::size_t n = T.size();
+std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid) {
+  const std::size_t n = mesh.triangle_count();
   const int bucket_levels = std::min(grid.depth, kBucketLevels);
   const int low_bits = 3 * (grid.depth - bucket_levels);
   const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
@@ -187,11 +185,11 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGr
     };
     for (std::size_t i = b; i < e; ++i) {
       if (i + kPrefetch < e) {
-        const auto& f = T[i + kPrefetch];
-        for (int k = 0; k < 3; ++k) __builtin_prefetch(&V[f[k]]);
+        const auto f = mesh.triangle(i + kPrefetch);
+        for (int k = 0; k < 3; ++k) __builtin_prefetch(mesh.vertex_address(f[k]));
       }
-      const auto& tri = T[i];
-      const Eigen::Vector3f va = V[tri[0]], vb = V[tri[1]], vc = V[tri[2]];
+      const auto tri = mesh.triangle(i);
+      const Eigen::Vector3f va = mesh.vertex(tri[0]), vb = mesh.vertex(tri[1]), vc = mesh.vertex(tri[2]);
       const Eigen::Vector3f c = (va + vb + vc) * (1.0f / 3.0f);
       // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
       const Eigen::Vector3f an = 0.5f * (vb - va).cross(vc - va);

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "dentmark/host/detect/linear_octree.h"
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect::detail {
 
@@ -33,11 +33,11 @@ struct LeafGrid {
   }
 };
 
-inline Eigen::Vector3f triangle_centroid(const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t) {
-  return (m.vertices[t[0]] + m.vertices[t[1]] + m.vertices[t[2]]) * (1.0f / 3.0f);
+inline Eigen::Vector3f triangle_centroid(const ingest::MeshView& m, const std::array<std::uint32_t, 3>& t) {
+  return (m.vertex(t[0]) + m.vertex(t[1]) + m.vertex(t[2])) * (1.0f / 3.0f);
 }
 
 // Leaves in Morton order, with A, S = Σ a_i N_i, Σ a_i c_i and the triangle count.
-std::vector<OctreeLeaf> accumulate_leaves(const ingest::Mesh& mesh, const LeafGrid& grid);
+std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid);
 
 }  // namespace dentmark::detect::detail

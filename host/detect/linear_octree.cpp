@@ -10,17 +10,16 @@
 
 namespace dentmark::detect {
 
-std::uint64_t LinearOctree::triangle_key(const ingest::Mesh& mesh, std::size_t t) const {
+std::uint64_t LinearOctree::triangle_key(const ingest::MeshView& mesh, std::size_t t) const {
   const detail::LeafGrid grid{origin_.cast<float>(), static_cast<float>(1.0 / leaf_size_), depth_};
-  return grid.key(detail::triangle_centroid(mesh, mesh.triangles[t]));
+  return grid.key(detail::triangle_centroid(mesh, mesh.triangle(t)));
 }
 
-LinearOctree LinearOctree::build(const ingest::Mesh& mesh, double leaf_size) {
+LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size) {
   if (!(leaf_size > 0.0) || !std::isfinite(leaf_size))
     throw std::invalid_argument("octree leaf size must be > 0");
-  const auto& V = mesh.vertices;
-  if (mesh.triangles.empty()) throw std::invalid_argument("octree of an empty mesh");
-  if (mesh.triangles.size() >= (1ull << 32)) throw std::invalid_argument("more than 4 G triangles");
+  if (mesh.triangle_count() == 0) throw std::invalid_argument("octree of an empty mesh");
+  if (mesh.triangle_count() >= (1ull << 32)) throw std::invalid_argument("more than 4 G triangles");
 
   // Bounding box of the vertices (finite by ingest's contract).
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
@@ -28,8 +27,10 @@ LinearOctree LinearOctree::build(const ingest::Mesh& mesh, double leaf_size) {
   {
     Eigen::Vector3f l = lo, h = hi;
 #pragma omp for nowait schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(V.size()); ++i)
-      if (V[i].allFinite()) l = l.cwiseMin(V[i]), h = h.cwiseMax(V[i]);
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(mesh.vertex_count()); ++i) {
+      const Eigen::Vector3f v = mesh.vertex(static_cast<std::size_t>(i));
+      if (v.allFinite()) l = l.cwiseMin(v), h = h.cwiseMax(v);
+    }
 #pragma omp critical
     lo = lo.cwiseMin(l), hi = hi.cwiseMax(h);
   }

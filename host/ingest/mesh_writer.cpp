@@ -8,17 +8,17 @@
 
 namespace dentmark::ingest {
 
-void write_ply(const std::string& path, const Mesh& mesh,
+void write_ply(const std::string& path, const MeshView& mesh,
                const std::vector<std::array<std::uint8_t, 3>>& colours) {
-  const bool coloured = colours.size() == mesh.vertices.size() && !colours.empty();
+  const bool coloured = colours.size() == mesh.vertex_count() && !colours.empty();
   const std::string tmp = path + ".tmp";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw IngestError(path + ": cannot write: " + std::strerror(errno));
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment dentmark, units: m\nelement vertex " +
-                       std::to_string(mesh.vertices.size()) +
+                       std::to_string(mesh.vertex_count()) +
                        "\nproperty float x\nproperty float y\nproperty float z\n";
   if (coloured) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  header += "element face " + std::to_string(mesh.triangles.size()) +
+  header += "element face " + std::to_string(mesh.triangle_count()) +
             "\nproperty list uchar int vertex_indices\nend_header\n";
   bool good = std::fwrite(header.data(), 1, header.size(), f) == header.size();
   const std::size_t vstride = coloured ? 15 : 12;
@@ -28,14 +28,16 @@ void write_ply(const std::string& path, const Mesh& mesh,
     if (!buf.empty()) good = good && std::fwrite(buf.data(), 1, buf.size(), f) == buf.size();
     buf.clear();
   };
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+  for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
     char rec[15];
-    std::memcpy(rec, mesh.vertices[i].data(), 12);
+    const Eigen::Vector3f v = mesh.vertex(i);
+    std::memcpy(rec, v.data(), 12);
     if (coloured) std::memcpy(rec + 12, colours[i].data(), 3);
     buf.insert(buf.end(), rec, rec + vstride);
     if (buf.size() > (1 << 20)) flush();
   }
-  for (const auto& t : mesh.triangles) {
+  for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
+    const auto t = mesh.triangle(i);
     char rec[13];
     rec[0] = 3;
     std::memcpy(rec + 1, t.data(), 12);

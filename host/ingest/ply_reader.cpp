@@ -143,10 +143,14 @@ class FaceSink {
   std::vector<std::uint32_t> corners_;
 };
 
-}  // namespace
+struct PlyHeader {
+  Encoding encoding = Encoding::kAscii;
+  std::vector<Element> elements;
+  std::size_t body = 0;   // byte offset of the first element
+  std::size_t lines = 0;  // header lines
+};
 
-Mesh read_ply(const std::string& path, std::string_view bytes) {
-  // --- header ---
+PlyHeader parse_header(const std::string& path, std::string_view bytes) {
   const std::size_t header_end_tag = bytes.find("end_header");
   if (bytes.substr(0, 3) != "ply" || header_end_tag == std::string_view::npos)
     throw IngestError(path + ": line 1: not a PLY file (no 'ply' magic or no 'end_header')");
@@ -204,14 +208,21 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
     hdr.next_line();
   }
   if (!encoding) throw IngestError(path + ": line 2: no 'format' line in the PLY header");
+  return {*encoding, std::move(elements), body, hdr.line()};
+}
 
+}  // namespace
+
+Mesh read_ply(const std::string& path, std::string_view bytes) {
+  const PlyHeader header = parse_header(path, bytes);
+  const std::vector<Element>& elements = header.elements;
+  const std::size_t body = header.body;
   Mesh mesh;
   FaceSink faces(mesh, path);
-  const bool swap = (*encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
-  const std::size_t header_lines = hdr.line();
+  const bool swap = (header.encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
 
-  if (*encoding == Encoding::kAscii) {
-    TextCursor cur(path, bytes.substr(body), header_lines + 1);
+  if (header.encoding == Encoding::kAscii) {
+    TextCursor cur(path, bytes.substr(body), header.lines + 1);
     for (const Element& e : elements) {
       int ix = -1, iy = -1, iz = -1, ilist = -1;
       for (std::size_t k = 0; k < e.properties.size(); ++k) {
@@ -423,6 +434,75 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
     }
   }
   return mesh;
+}
+
+std::optional<MeshView> ply_in_place(const std::string& path, std::string_view bytes, float scale) {
+  if (bytes.substr(0, 3) != "ply") return std::nullopt;
+  const PlyHeader header = parse_header(path, bytes);
+  if (header.encoding != Encoding::kLittle || std::endian::native != std::endian::little) return std::nullopt;
+  // Offsets of the blocks; anything but fixed-size elements and one trailing face list
+  // is left to read_ply.
+  std::size_t off = header.body, vertex_block = 0, vertex_stride = 0, xyz = 0, face_block = 0;
+  std::uint64_t vertex_count = 0, face_count = 0;
+  bool has_vertices = false, signed_index = false;
+  for (const Element& e : header.elements) {
+    const bool last = &e == &header.elements.back();
+    if (e.name == "face" && last && e.properties.size() == 1 && e.properties[0].is_list) {
+      const Property& p = e.properties[0];
+      if (p.count_type != Scalar::kU8 || (p.type != Scalar::kI32 && p.type != Scalar::kU32))
+        return std::nullopt;
+      if (off > bytes.size() || (bytes.size() - off) / 13 != e.count || (bytes.size() - off) % 13 != 0)
+        return std::nullopt;
+      face_block = off, face_count = e.count, signed_index = p.type == Scalar::kI32;
+      off = bytes.size();
+      continue;
+    }
+    std::size_t stride = 0, ox = SIZE_MAX, oy = SIZE_MAX, oz = SIZE_MAX;
+    for (const Property& p : e.properties) {
+      if (p.is_list) return std::nullopt;
+      if (e.name == "vertex" && p.type == Scalar::kF32) {
+        if (p.name == "x") ox = stride;
+        if (p.name == "y") oy = stride;
+        if (p.name == "z") oz = stride;
+      }
+      stride += scalar_size(p.type);
+    }
+    if (stride != 0 && e.count > (bytes.size() - std::min(off, bytes.size())) / stride) return std::nullopt;
+    if (e.name == "vertex") {
+      if (ox == SIZE_MAX || oy != ox + 4 || oz != ox + 8) return std::nullopt;
+      has_vertices = true, vertex_block = off, vertex_stride = stride, xyz = ox, vertex_count = e.count;
+    }
+    off += static_cast<std::size_t>(e.count) * stride;
+  }
+  if (!has_vertices || face_count == 0 || vertex_count >= (1ull << 32) - 1) return std::nullopt;
+
+  // One parallel pass over each block: every face a triangle with indices in range, every
+  // coordinate finite. Anything else (polygons, bad indices, NaN) goes through read_ply,
+  // which fans, drops or reports it.
+  const char* const faces = bytes.data() + face_block;
+  const char* const vertices = bytes.data() + vertex_block + xyz;
+  const auto nf = static_cast<std::int64_t>(face_count), nv = static_cast<std::int64_t>(vertex_count);
+  const std::uint32_t limit = static_cast<std::uint32_t>(vertex_count);
+  std::int64_t bad = 0;
+#pragma omp parallel for schedule(static) reduction(+ : bad)
+  for (std::int64_t r = 0; r < nf; ++r) {
+    const char* q = faces + 13 * r;
+    std::uint32_t v[3];
+    std::memcpy(v, q + 1, sizeof v);
+    // A negative int32 is >= 2^31 as unsigned, so the range check rejects it as well.
+    bad += static_cast<std::uint8_t>(q[0]) != 3 || v[0] >= limit || v[1] >= limit || v[2] >= limit ||
+           (signed_index && (v[0] | v[1] | v[2]) >= 0x80000000u);
+  }
+  if (bad != 0) return std::nullopt;
+#pragma omp parallel for schedule(static) reduction(+ : bad)
+  for (std::int64_t i = 0; i < nv; ++i) {
+    float c[3];
+    std::memcpy(c, vertices + static_cast<std::size_t>(i) * vertex_stride, sizeof c);
+    bad += !(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]));
+  }
+  if (bad != 0) return std::nullopt;
+  return MeshView(reinterpret_cast<const std::byte*>(vertices), vertex_count, vertex_stride,
+                  reinterpret_cast<const std::byte*>(faces + 1), face_count, 13, scale);
 }
 
 }  // namespace dentmark::ingest::detail

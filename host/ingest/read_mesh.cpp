@@ -22,11 +22,14 @@ Format format_from_path(const std::string& path) {
   return Format::kAuto;
 }
 
-Mesh read_mesh(const std::string& path, const ReadOptions& options) {
+namespace {
+
+void check_scale(const std::string& path, const ReadOptions& options) {
   if (!(options.scale_to_m > 0.0) || !std::isfinite(options.scale_to_m))
     throw IngestError(path + ": scale to metres must be positive");
-  detail::MappedFile file(path);
-  const std::string_view bytes = file.view();
+}
+
+Format resolve_format(const std::string& path, std::string_view bytes, const ReadOptions& options) {
   Format format = options.format == Format::kAuto ? format_from_path(path) : options.format;
   if (format == Format::kAuto) {
     if (bytes.substr(0, 3) == "ply")
@@ -37,6 +40,10 @@ Mesh read_mesh(const std::string& path, const ReadOptions& options) {
       throw IngestError(path + ": byte 0: unknown file format (use .ply, .obj, .stl or .xyz)");
   }
   if (bytes.empty()) throw IngestError(path + ": byte 0: file is empty");
+  return format;
+}
+
+Mesh read_mapped(const std::string& path, std::string_view bytes, Format format, const ReadOptions& options) {
   Mesh mesh;
   switch (format) {
     case Format::kPly:
@@ -90,6 +97,40 @@ Mesh read_mesh(const std::string& path, const ReadOptions& options) {
   }
   if (options.progress) options.progress(1.0);
   return mesh;
+}
+
+}  // namespace
+
+Mesh read_mesh(const std::string& path, const ReadOptions& options) {
+  check_scale(path, options);
+  const detail::MappedFile file(path);
+  return read_mapped(path, file.view(), resolve_format(path, file.view(), options), options);
+}
+
+Scan open_scan(const std::string& path, const ReadOptions& options) {
+  check_scale(path, options);
+  auto file = std::make_shared<const detail::MappedFile>(path);
+  const Format format = resolve_format(path, file->view(), options);
+  Scan scan;
+  if (format == Format::kPly) {
+    if (auto view = detail::ply_in_place(path, file->view(), static_cast<float>(options.scale_to_m))) {
+      scan.mesh = *view;
+      scan.input_points = view->vertex_count();
+      scan.in_place = true;
+      scan.storage = std::move(file);
+      if (options.progress) options.progress(1.0);
+      return scan;
+    }
+  }
+  auto mesh = std::make_shared<const Mesh>(read_mapped(path, file->view(), format, options));
+  file.reset();
+  scan.mesh = *mesh;
+  scan.input_points = mesh->input_points;
+  scan.dropped_faces = mesh->dropped_faces;
+  scan.nonfinite_vertices = mesh->nonfinite_vertices;
+  scan.from_point_cloud = mesh->from_point_cloud;
+  scan.storage = std::move(mesh);
+  return scan;
 }
 
 }  // namespace dentmark::ingest

@@ -2,10 +2,12 @@
 // Per-format readers behind read_mesh(). Each fills vertices (file units, scaled to
 // metres by the caller) and triangles; they throw IngestError naming file and position.
 
+#include <optional>
 #include <string>
 #include <string_view>
 
 #include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::ingest::detail {
 
@@ -13,5 +15,11 @@ Mesh read_ply(const std::string& path, std::string_view bytes);
 Mesh read_obj(const std::string& path, std::string_view bytes);
 Mesh read_stl(const std::string& path, std::string_view bytes);
 Mesh read_xyz(const std::string& path, std::string_view bytes);
+
+// A binary little-endian PLY in the usual scanner layout (float x, y, z consecutive in the
+// vertex record; a trailing face element of uchar 3 and 32-bit indices) as a view of the
+// bytes themselves, after a parallel check of every face and coordinate; nullopt for any
+// other layout or content, which read_ply then reads (and reports). `scale`: to metres.
+std::optional<MeshView> ply_in_place(const std::string& path, std::string_view bytes, float scale);
 
 }  // namespace dentmark::ingest::detail

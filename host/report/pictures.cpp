@@ -89,12 +89,13 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
   if (ec) throw ReportError(path + ": cannot rename: " + ec.message());
 }
 
-void write_marked_ply(const std::string& path, const ingest::Mesh& mesh, const detect::Detection& det) {
+void write_marked_ply(const std::string& path, const ingest::MeshView& mesh, const detect::Detection& det) {
   const auto& map = det.map;
-  std::vector<std::array<std::uint8_t, 3>> colours(mesh.vertices.size(), {190, 190, 190});
-  for (const auto& t : mesh.triangles) {
+  std::vector<std::array<std::uint8_t, 3>> colours(mesh.vertex_count(), {190, 190, 190});
+  for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
+    const auto t = mesh.triangle(i);
     const Eigen::Vector3d c =
-        ((mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0f).cast<double>();
+        ((mesh.vertex(t[0]) + mesh.vertex(t[1]) + mesh.vertex(t[2])) / 3.0f).cast<double>();
     const Eigen::Vector3d q = map.to_map(c);
     const long k = map.pixel_of(q.x(), q.y());
     if (k < 0) continue;
@@ -110,7 +111,7 @@ void write_marked_ply(const std::string& path, const ingest::Mesh& mesh, const d
     } else {
       continue;
     }
-    for (auto i : t) colours[i] = col;
+    for (auto v : t) colours[v] = col;
   }
   try {
     ingest::write_ply(path, mesh, colours);

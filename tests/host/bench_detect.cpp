@@ -75,10 +75,10 @@ void BM_ReadDetectWrite(benchmark::State& state) {
   const std::string ply = dir + "/dentmark_bench_door.ply", json = dir + "/dentmark_bench_door.json";
   ingest::write_ply(ply, big_mesh(true));
   for (auto _ : state) {
-    const ingest::Mesh mesh = ingest::read_mesh(ply);
-    const auto det = detect::detect(mesh, detect::DetectConfig{});
+    const ingest::Scan scan = ingest::open_scan(ply);
+    const auto det = detect::detect(scan.mesh, detect::DetectConfig{});
     report::write_text_file(
-        json, report::defects_to_json(det, {ply, mesh.vertices.size(), mesh.triangles.size()}).dump(1));
+        json, report::defects_to_json(det, {ply, scan.input_points, scan.mesh.triangle_count()}).dump(1));
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * big_mesh(true).triangles.size()));
   std::filesystem::remove(ply);

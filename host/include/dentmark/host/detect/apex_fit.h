@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "dentmark/host/detect/height_map.h"
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 
@@ -16,7 +16,7 @@ namespace dentmark::detect {
 class PixelSamples {
  public:
   // select: one byte per map pixel, non-zero to keep that pixel's vertices.
-  PixelSamples(const ingest::Mesh& mesh, const HeightMap& map, const std::vector<std::uint8_t>& select);
+  PixelSamples(const ingest::MeshView& mesh, const HeightMap& map, const std::vector<std::uint8_t>& select);
   // Appends the samples of 'pixel' (map coordinates u, v, w) to 'out'.
   void append(std::int32_t pixel, std::vector<Eigen::Vector3d>& out) const;
   std::size_t size() const { return points_.size(); }

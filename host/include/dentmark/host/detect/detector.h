@@ -12,7 +12,7 @@
 #include "dentmark/common/protocol/messages.h"
 #include "dentmark/host/detect/config.h"
 #include "dentmark/host/detect/height_map.h"
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 
@@ -45,6 +45,6 @@ struct Detection {
   std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
 };
 
-Detection detect(const ingest::Mesh& mesh, const DetectConfig& config);
+Detection detect(const ingest::MeshView& mesh, const DetectConfig& config);
 
 }  // namespace dentmark::detect

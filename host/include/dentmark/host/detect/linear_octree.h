@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 
@@ -32,11 +32,11 @@ class LinearOctree {
  public:
   // Builds the leaves at the depth whose node edge is leaf_size (m). Triangles may come
   // in any order; the mesh is read twice and never sorted (see linear_octree.cpp).
-  static LinearOctree build(const ingest::Mesh& mesh, double leaf_size);
+  static LinearOctree build(const ingest::MeshView& mesh, double leaf_size);
 
   const std::vector<OctreeLeaf>& leaves() const { return leaves_; }
   // Finest-depth key of the leaf holding triangle t (its centroid's cell).
-  std::uint64_t triangle_key(const ingest::Mesh& mesh, std::size_t t) const;
+  std::uint64_t triangle_key(const ingest::MeshView& mesh, std::size_t t) const;
   int depth() const { return depth_; }
   double leaf_size() const { return leaf_size_; }
   const Eigen::Vector3d& origin() const { return origin_; }

@@ -7,12 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
 
 // colours: empty, or one RGB per vertex. Throws IngestError on I/O failure.
-void write_ply(const std::string& path, const Mesh& mesh,
+void write_ply(const std::string& path, const MeshView& mesh,
                const std::vector<std::array<std::uint8_t, 3>>& colours = {});
 
 }  // namespace dentmark::ingest

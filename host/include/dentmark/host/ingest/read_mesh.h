@@ -2,10 +2,13 @@
 // Reads a scan (PLY ascii/binary LE/BE, OBJ, STL ascii/binary, XYZ text) into a Mesh.
 // Point clouds (PLY without faces, XYZ) are meshed in the sensor's view (2.5D).
 
+#include <cstddef>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
 
@@ -20,6 +23,22 @@ struct ReadOptions {
 
 // Throws IngestError naming the file and the line or byte offset.
 Mesh read_mesh(const std::string& path, const ReadOptions& options = {});
+
+// A scan ready for detection. A binary PLY in the usual scanner layout is used in place
+// in the mapped file (checked, not copied); any other file is read into a Mesh. Copies
+// share the memory behind `mesh`.
+struct Scan {
+  MeshView mesh;
+  std::size_t input_points = 0;         // vertices / points in the file
+  std::size_t dropped_faces = 0;        // faces with < 3 corners or non-finite corners
+  std::size_t nonfinite_vertices = 0;   // vertices with NaN/Inf coordinates
+  bool from_point_cloud = false;        // meshed here in the sensor's view (2.5D)
+  bool in_place = false;                // `mesh` is the file's own bytes
+  std::shared_ptr<const void> storage;  // the mapped file or the Mesh behind `mesh`
+};
+
+// Throws IngestError naming the file and the line or byte offset.
+Scan open_scan(const std::string& path, const ReadOptions& options = {});
 
 // Format from the file name's extension (case-insensitive); kAuto if unknown.
 Format format_from_path(const std::string& path);

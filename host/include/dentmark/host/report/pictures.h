@@ -12,6 +12,7 @@ namespace dentmark::report {
 
 // Throws ReportError on failure; nothing is left half-written.
 void write_report_png(const std::string& path, const detect::Detection& detection);
-void write_marked_ply(const std::string& path, const ingest::Mesh& mesh, const detect::Detection& detection);
+void write_marked_ply(const std::string& path, const ingest::MeshView& mesh,
+                      const detect::Detection& detection);
 
 }  // namespace dentmark::report

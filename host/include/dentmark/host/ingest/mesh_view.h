@@ -1,0 +1,66 @@
+#pragma once
+// A read-only view of a triangle mesh in memory someone else owns: a Mesh, or the vertex
+// and face blocks of a binary PLY used in place in the mapped file (no copy of a 170 MB
+// scan: on a VM every fresh megabyte costs milliseconds of page faults). Vertices are
+// three consecutive floats every `vertex_stride` bytes; triangles three 32-bit indices
+// every `triangle_stride` bytes. Everything the detector reads goes through here.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+#include "dentmark/host/ingest/mesh.h"
+
+namespace dentmark::ingest {
+
+class MeshView {
+ public:
+  MeshView() = default;
+  // Every Mesh is a view of itself (implicit: detect(mesh, ...) takes either).
+  MeshView(const Mesh& mesh)  // NOLINT(google-explicit-constructor)
+      : vertices_(reinterpret_cast<const std::byte*>(mesh.vertices.data())),
+        triangles_(reinterpret_cast<const std::byte*>(mesh.triangles.data())),
+        vertex_count_(mesh.vertices.size()),
+        triangle_count_(mesh.triangles.size()),
+        vertex_stride_(sizeof(Eigen::Vector3f)),
+        triangle_stride_(sizeof(std::array<std::uint32_t, 3>)) {}
+  // `scale` converts the stored coordinates to metres. The caller guarantees that every
+  // index is below vertex_count and every coordinate is finite.
+  MeshView(const std::byte* vertices, std::size_t vertex_count, std::size_t vertex_stride,
+           const std::byte* triangles, std::size_t triangle_count, std::size_t triangle_stride, float scale)
+      : vertices_(vertices),
+        triangles_(triangles),
+        vertex_count_(vertex_count),
+        triangle_count_(triangle_count),
+        vertex_stride_(vertex_stride),
+        triangle_stride_(triangle_stride),
+        scale_(scale) {}
+
+  std::size_t vertex_count() const { return vertex_count_; }
+  std::size_t triangle_count() const { return triangle_count_; }
+
+  Eigen::Vector3f vertex(std::size_t i) const {
+    float v[3];
+    std::memcpy(v, vertex_address(i), sizeof v);
+    return Eigen::Vector3f(v[0], v[1], v[2]) * scale_;
+  }
+  std::array<std::uint32_t, 3> triangle(std::size_t i) const {
+    std::array<std::uint32_t, 3> t;
+    std::memcpy(t.data(), triangles_ + i * triangle_stride_, sizeof t);
+    return t;
+  }
+  // For prefetching ahead of random gathers.
+  const std::byte* vertex_address(std::size_t i) const { return vertices_ + i * vertex_stride_; }
+  const std::byte* triangle_address(std::size_t i) const { return triangles_ + i * triangle_stride_; }
+
+ private:
+  const std::byte* vertices_ = nullptr;
+  const std::byte* triangles_ = nullptr;
+  std::size_t vertex_count_ = 0, triangle_count_ = 0;
+  std::size_t vertex_stride_ = sizeof(Eigen::Vector3f), triangle_stride_ = 12;
+  float scale_ = 1.0f;
+};
+
+}  // namespace dentmark::ingest
