@@ -209,7 +209,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   for (const auto& g : groups)
     for (auto l : g) {
       const auto& leaf = tree.leaves()[l];
-      const Eigen::Vector3d q = map.to_map(leaf.sum_ac / leaf.area);
+      const Eigen::Vector3d q = map.to_map(leaf.centroid.cast<double>());
       const long k = map.pixel_of(q.x(), q.y());
       if (k >= 0) octree_px.data[k] = 255;
     }

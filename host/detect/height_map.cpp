@@ -23,13 +23,14 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // Plane through the area-weighted leaf centroids (weighted scatter of leaf means).
   double A = 0.0;
   Eigen::Vector3d P = Eigen::Vector3d::Zero(), S = Eigen::Vector3d::Zero();
-  for (const auto& l : leaves) A += l.area, P += l.sum_ac, S += l.sum_an;
+  for (const auto& l : leaves)
+    A += l.area, P += l.area * l.centroid.cast<double>(), S += l.sum_an.cast<double>();
   if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
   const Eigen::Vector3d c = P / A;
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
   for (const auto& l : leaves) {
     if (!(l.area > 0.0)) continue;
-    const Eigen::Vector3d d = l.sum_ac / l.area - c;
+    const Eigen::Vector3d d = l.centroid.cast<double>() - c;
     scatter += l.area * d * d.transpose();
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
@@ -48,54 +49,62 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
+  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), and the bounds.
+  const auto count = static_cast<std::int64_t>(leaves.size());
+  std::vector<Eigen::Vector3f> q(leaves.size());
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
-  std::vector<Eigen::Vector3d> q(leaves.size());
-  for (std::size_t i = 0; i < leaves.size(); ++i) {
-    if (!(leaves[i].area > 0.0)) continue;
-    q[i] = map.to_map(leaves[i].sum_ac / leaves[i].area);
-    umin = std::min(umin, q[i].x()), umax = std::max(umax, q[i].x());
-    vmin = std::min(vmin, q[i].y()), vmax = std::max(vmax, q[i].y());
+#pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
+  for (std::int64_t i = 0; i < count; ++i) {
+    if (!(leaves[i].area > 0.0f)) continue;
+    const Eigen::Vector3d p = map.to_map(leaves[i].centroid.cast<double>());
+    q[i] = p.cast<float>();
+    umin = std::min(umin, p.x()), umax = std::max(umax, p.x());
+    vmin = std::min(vmin, p.y()), vmax = std::max(vmax, p.y());
   }
   map.u0 = umin - pixel, map.v0 = vmin - pixel;
   map.cols = static_cast<int>((umax - map.u0) / pixel) + 2;
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
   const std::size_t n = map.size();
+  std::vector<std::int32_t> pix(leaves.size(), -1);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < count; ++i)
+    if (leaves[i].area > 0.0f) pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
   // A single view sees the front surface of each column. Leaves more than layer_depth
   // behind the column's front were seen through a hole (or are outliers): kept aside.
   // (Anchoring on the column's busiest leaf instead lets a hole's backdrop win the rim
   // columns; an outlier in front only spoils its own pixel, which the median removes.)
   std::vector<float> front(n, -std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < leaves.size(); ++i)
+    if (pix[i] >= 0) front[pix[i]] = std::max(front[pix[i]], q[i].z());
+  // Area-weighted sums per pixel, straight into the map's arrays (a pixel holds one or two
+  // leaves: float sums lose nothing), then divided in place.
+  map.weight.assign(n, 0.0f);
+  map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
+  std::vector<Eigen::Vector3f> sn(n, Eigen::Vector3f::Zero());
+  const auto layer = static_cast<float>(layer_depth);
   for (std::size_t i = 0; i < leaves.size(); ++i) {
-    if (!(leaves[i].area > 0.0)) continue;
-    const long k = map.pixel_of(q[i].x(), q[i].y());
-    if (k >= 0) front[k] = std::max(front[k], static_cast<float>(q[i].z()));
-  }
-  std::vector<double> sw(n, 0.0), su(n, 0.0), sv(n, 0.0), sh(n, 0.0);
-  std::vector<Eigen::Vector3d> sn(n, Eigen::Vector3d::Zero());
-  for (std::size_t i = 0; i < leaves.size(); ++i) {
-    const double a = leaves[i].area;
-    if (!(a > 0.0)) continue;
-    const long k = map.pixel_of(q[i].x(), q[i].y());
+    const std::int32_t k = pix[i];
     if (k < 0) continue;
-    if (q[i].z() < front[k] - layer_depth) {
-      map.behind.push_back(q[i].cast<float>());
+    if (q[i].z() < front[k] - layer) {
+      map.behind.push_back(q[i]);
       continue;
     }
-    sw[k] += a, su[k] += a * q[i].x(), sv[k] += a * q[i].y(), sh[k] += a * q[i].z();
+    const float a = leaves[i].area;
+    map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
     sn[k] += leaves[i].sum_an;
   }
-  map.weight.assign(n, 0.0f);
-  map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f), map.cos_tilt.assign(n, 1.0f);
-  const double px2 = pixel * pixel;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (!(sw[k] > 0.0)) continue;
-    map.weight[k] = static_cast<float>(sw[k] / px2);
-    map.u[k] = static_cast<float>(su[k] / sw[k]);
-    map.v[k] = static_cast<float>(sv[k] / sw[k]);
-    map.w[k] = static_cast<float>(sh[k] / sw[k]);
-    const double nn = sn[k].norm();
-    map.cos_tilt[k] = nn > 0 ? static_cast<float>(std::abs(sn[k].dot(w)) / nn) : 1.0f;
+  map.cos_tilt.assign(n, 1.0f);
+  const Eigen::Vector3f wf = w.cast<float>();
+  const auto inv_px2 = static_cast<float>(1.0 / (pixel * pixel));
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
+    const float a = map.weight[k];
+    if (!(a > 0.0f)) continue;
+    map.u[k] /= a, map.v[k] /= a, map.w[k] /= a;
+    map.weight[k] = a * inv_px2;
+    const float nn = sn[k].norm();
+    map.cos_tilt[k] = nn > 0 ? std::abs(sn[k].dot(wf)) / nn : 1.0f;
   }
   return map;
 }

@@ -18,20 +18,33 @@ namespace {
 // scan comes in any order, and sorting 10 M keys and then gathering per-triangle sums in
 // sorted order costs two random passes over memory. Instead one pass files each
 // triangle's contribution under its coarse bucket (8^kBucketLevels cells of the octree)
-// in chains of small chunks, and each bucket, a few thousand records that fit in the
-// cache, is summed through a small hash table on the remaining key bits. Consecutive
-// triangles in the same leaf (sensor order) are merged before they are filed, so an
-// ordered scan writes a fifth of the records.
-constexpr int kBucketLevels = 5;   // 32 768 buckets: their chain tails stay in L2
+// in chains of small chunks, and each bucket, tens of thousands of records that fit in
+// the cache, is summed through a small hash table on the remaining key bits. A leaf's
+// triangles are summed in an "open leaf" (a small direct-mapped table) before they are
+// filed; in sensor order they come back row after row to their open leaf, so an ordered
+// scan files about one record per leaf (1.25 M for 8.9 M triangles).
+constexpr int kBucketLevels = 4;   // 4 096 buckets: their chain tails stay in L1/L2
 constexpr int kChunkRecords = 62;  // a chunk is ~2.2 KB
 constexpr int kPrefetch = 24;      // triangles ahead: hides the random vertex reads
 
-struct Record {         // 36 bytes: the sums of a run of triangles in one leaf
+struct Record {         // 36 bytes: the sums of some triangles in one leaf
   std::uint32_t cell;   // key bits below the bucket
   std::uint32_t count;  // triangles
   float area;           // Σ a_i
   float an[3];          // Σ a_i N_i
   float ac[3];          // Σ a_i (c_i − leaf corner): small numbers keep float precision
+};
+
+// A leaf being summed in pass 1, before it is filed as a record. 8 192 of them (320 KB)
+// stay in a core's L2.
+constexpr int kOpenLeafBits = 13;
+constexpr std::size_t kOpenLeaves = std::size_t{1} << kOpenLeafBits;
+struct OpenLeaf {
+  std::uint64_t key = ~0ull;
+  std::uint32_t count = 0;
+  float area = 0.0f;
+  float an[3] = {0, 0, 0};
+  float ac[3] = {0, 0, 0};
 };
 
 struct Chunk {
@@ -94,44 +107,46 @@ class BucketSummer {
     int shift = 32;
     for (std::size_t s = size; s > 1; s >>= 1) --shift;
     slots_.assign(size, -1);
-    leaves_.clear();
     for (const Chunk* c : chains)
       for (; c; c = c->next)
         for (std::uint32_t i = 0; i < c->size; ++i) {
           const Record& r = c->records[i];
           std::size_t h = static_cast<std::uint32_t>(r.cell * 0x9E3779B1u) >> shift;
-          while (slots_[h] >= 0 && cells_[static_cast<std::size_t>(slots_[h])] != r.cell)
+          while (slots_[h] >= 0 && sums_[static_cast<std::size_t>(slots_[h])].cell != r.cell)
             h = (h + 1) & (size - 1);
           if (slots_[h] < 0) {
-            slots_[h] = static_cast<std::int32_t>(leaves_.size());
-            leaves_.emplace_back();
-            cells_.resize(leaves_.size());
-            cells_.back() = r.cell;
+            slots_[h] = static_cast<std::int32_t>(sums_.size());
+            sums_.push_back(Record{r.cell, 0, 0.0f, {0, 0, 0}, {0, 0, 0}});
           }
-          OctreeLeaf& l = leaves_[static_cast<std::size_t>(slots_[h])];
+          Record& l = sums_[static_cast<std::size_t>(slots_[h])];
           l.count += r.count;
           l.area += r.area;
-          for (int a = 0; a < 3; ++a) {
-            l.sum_an[a] += r.an[a];
-            l.sum_ac[a] += r.ac[a];
-          }
+          for (int a = 0; a < 3; ++a) l.an[a] += r.an[a], l.ac[a] += r.ac[a];
         }
-    order_.resize(leaves_.size());
+    order_.resize(sums_.size());
     for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = static_cast<std::uint32_t>(i);
     std::sort(order_.begin(), order_.end(),
-              [&](std::uint32_t a, std::uint32_t b) { return cells_[a] < cells_[b]; });
+              [&](std::uint32_t a, std::uint32_t b) { return sums_[a].cell < sums_[b].cell; });
+    const float half = 0.5f / grid.inv_leaf;
     for (auto i : order_) {
-      OctreeLeaf& l = out.emplace_back(leaves_[i]);
-      l.key = bucket << low_bits | cells_[i];
-      l.sum_ac += l.area * grid.corner(l.key).cast<double>();
+      const Record& r = sums_[i];
+      OctreeLeaf& l = out.emplace_back();
+      l.key = bucket << low_bits | r.cell;
+      l.count = r.count;
+      l.area = r.area;
+      l.sum_an = Eigen::Vector3f(r.an[0], r.an[1], r.an[2]);
+      const Eigen::Vector3f offset =
+          r.area > 0.0f ? Eigen::Vector3f(Eigen::Vector3f(r.ac[0], r.ac[1], r.ac[2]) / r.area)
+                        : Eigen::Vector3f::Constant(half);
+      l.centroid = grid.corner(l.key) + offset;
     }
-    cells_.clear();
+    sums_.clear();
   }
 
  private:
   std::vector<std::int32_t> slots_;
-  std::vector<OctreeLeaf> leaves_;
-  std::vector<std::uint32_t> cells_, order_;
+  std::vector<Record> sums_;  // one per leaf, in order of first appearance
+  std::vector<std::uint32_t> order_;
 };
 
 int thread_count() {
@@ -154,7 +169,8 @@ int thread_id() {
 
 std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid) {
   const std::size_t n = mesh.triangle_count();
-  const int bucket_levels = std::min(grid.depth, kBucketLevels);
+  // At least depth - 10 bucket levels, so that a record's cell (the bits below) fits 32 bits.
+  const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
   const int low_bits = 3 * (grid.depth - bucket_levels);
   const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
   const int threads = thread_count();
@@ -169,19 +185,19 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const Le
     stores[t] = std::make_unique<ChunkStore>(buckets);
     ChunkStore& store = *stores[t];
     const std::uint64_t low_mask = (std::uint64_t{1} << low_bits) - 1;
-    // The current run of consecutive triangles in one leaf, in registers (double sums).
-    std::uint64_t run_key = ~0ull;
-    std::uint32_t run_count = 0;
-    double run_area = 0.0, anx = 0.0, any = 0.0, anz = 0.0, acx = 0.0, acy = 0.0, acz = 0.0;
+    // Open leaves, direct-mapped by key: in sensor order a leaf's triangles come back
+    // row after row and meet their open leaf here, so about one record per leaf is filed.
+    std::vector<OpenLeaf> open(kOpenLeaves);
+    OpenLeaf* last = &open[0];
+    Eigen::Vector3i last_cell(-1, -1, -1);
     Eigen::Vector3f corner = Eigen::Vector3f::Zero();
-    const auto file_run = [&] {
-      if (run_count == 0) return;
-      Record& r = store.append(run_key >> low_bits);
-      r.cell = static_cast<std::uint32_t>(run_key & low_mask);
-      r.count = run_count;
-      r.area = static_cast<float>(run_area);
-      r.an[0] = static_cast<float>(anx), r.an[1] = static_cast<float>(any), r.an[2] = static_cast<float>(anz);
-      r.ac[0] = static_cast<float>(acx), r.ac[1] = static_cast<float>(acy), r.ac[2] = static_cast<float>(acz);
+    const auto file = [&](const OpenLeaf& l) {
+      Record& r = store.append(l.key >> low_bits);
+      r.cell = static_cast<std::uint32_t>(l.key & low_mask);
+      r.count = l.count;
+      r.area = l.area;
+      std::copy(l.an, l.an + 3, r.an);
+      std::copy(l.ac, l.ac + 3, r.ac);
     };
     for (std::size_t i = b; i < e; ++i) {
       if (i + kPrefetch < e) {
@@ -194,19 +210,25 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const Le
       // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
       const Eigen::Vector3f an = 0.5f * (vb - va).cross(vc - va);
       const float area = an.norm();
-      const std::uint64_t key = grid.key(c);
-      if (key != run_key || run_count == ~0u) {
-        file_run();
-        run_key = key, run_count = 0, corner = grid.corner(key);
-        run_area = anx = any = anz = acx = acy = acz = 0.0;
+      const Eigen::Vector3i cell = grid.cell(c);
+      if (cell != last_cell || last->count == ~0u) {  // sensor order: mostly the same leaf
+        const std::uint64_t key = LinearOctree::encode(cell);
+        last = &open[(key * 0x9E3779B97F4A7C15ull) >> (64 - kOpenLeafBits)];
+        if (last->key != key || last->count == ~0u) {
+          if (last->count > 0) file(*last);
+          *last = OpenLeaf{key};
+        }
+        last_cell = cell, corner = grid.corner(cell);
       }
+      // Centroids relative to the cell's corner: small numbers keep float precision.
       const Eigen::Vector3f ac = area * (c - corner);
-      run_count += 1;
-      run_area += area;
-      anx += an.x(), any += an.y(), anz += an.z();
-      acx += ac.x(), acy += ac.y(), acz += ac.z();
+      OpenLeaf& l = *last;
+      l.count += 1;
+      l.area += area;
+      for (int a = 0; a < 3; ++a) l.an[a] += an[a], l.ac[a] += ac[a];
     }
-    file_run();
+    for (const OpenLeaf& l : open)
+      if (l.count > 0) file(l);
   }
 
   // Pass 2: buckets in key order, split between threads by record count; each thread's

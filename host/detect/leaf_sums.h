@@ -19,18 +19,19 @@ struct LeafGrid {
   float inv_leaf = 1.0f;
   int depth = 1;
 
-  // Morton key of the cell holding p (clamped into the grid).
-  std::uint64_t key(const Eigen::Vector3f& p) const {
+  // Integer cell holding p (clamped into the grid).
+  Eigen::Vector3i cell(const Eigen::Vector3f& p) const {
     const Eigen::Vector3f c = (p - origin) * inv_leaf;
     const int cells = 1 << depth;
     Eigen::Vector3i q;
     for (int a = 0; a < 3; ++a) q[a] = std::clamp(static_cast<int>(c[a]), 0, cells - 1);
-    return LinearOctree::encode(q);
+    return q;
   }
+  // Morton key of the cell holding p.
+  std::uint64_t key(const Eigen::Vector3f& p) const { return LinearOctree::encode(cell(p)); }
+  Eigen::Vector3f corner(const Eigen::Vector3i& cell) const { return origin + cell.cast<float>() / inv_leaf; }
   // Lower corner of the cell with this key.
-  Eigen::Vector3f corner(std::uint64_t key) const {
-    return origin + LinearOctree::decode(key).cast<float>() / inv_leaf;
-  }
+  Eigen::Vector3f corner(std::uint64_t key) const { return corner(LinearOctree::decode(key)); }
 };
 
 inline Eigen::Vector3f triangle_centroid(const ingest::MeshView& m, const std::array<std::uint32_t, 3>& t) {

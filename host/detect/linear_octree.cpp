@@ -54,7 +54,7 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   tree.prefix_an_[0].setZero();
   for (std::size_t l = 0; l < total; ++l) {
     tree.prefix_area_[l + 1] = tree.prefix_area_[l] + tree.leaves_[l].area;
-    tree.prefix_an_[l + 1] = tree.prefix_an_[l] + tree.leaves_[l].sum_an;
+    tree.prefix_an_[l + 1] = tree.prefix_an_[l] + tree.leaves_[l].sum_an.cast<double>();
   }
   return tree;
 }

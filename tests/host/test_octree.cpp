@@ -136,9 +136,9 @@ TEST(LinearOctree, LeafSumsEqualBruteForcePerCell) {
       ASSERT_EQ(leaf.key, it->first);  // Morton order
       EXPECT_EQ(leaf.count, it->second.count);
       EXPECT_NEAR(leaf.area, it->second.area, 1e-5 * it->second.area);
-      EXPECT_LT((leaf.sum_an - it->second.an).norm(), 1e-5 * it->second.area);
+      EXPECT_LT((leaf.sum_an.cast<double>() - it->second.an).norm(), 1e-5 * it->second.area);
       // Mean point within 50 nm of the truth (float centroids at 0.2 m: ~25 nm).
-      EXPECT_LT((leaf.sum_ac / leaf.area - it->second.ac / it->second.area).norm(), 5e-8);
+      EXPECT_LT((leaf.centroid.cast<double>() - it->second.ac / it->second.area).norm(), 5e-8);
       ++it;
     }
   }
@@ -155,7 +155,7 @@ TEST(LinearOctree, SubdivisionFindsARidgeAndGroupingSeparatesTwo) {
   const auto feat = tree.feature_leaves(0.1, 0.2);
   ASSERT_FALSE(feat.empty());
   for (auto l : feat) {
-    const Eigen::Vector3d c = tree.leaves()[l].sum_ac / tree.leaves()[l].area;
+    const Eigen::Vector3d c = tree.leaves()[l].centroid.cast<double>();
     EXPECT_LT(std::min(std::abs(c.x() - 0.020), std::abs(c.x() - 0.060)), 0.0065) << c.transpose();
   }
   const auto groups = group_features(tree, feat, 0.0);
