@@ -1,7 +1,7 @@
 #pragma once
 // The paper's octree (§III-A) as a linear octree: every triangle gets the Morton code of
-// its centroid at the finest depth; after one sort, every node at every depth is a
-// contiguous range of leaves. Per leaf the additive sums A = Σ a_i (eq. 1) and
+// its centroid at the finest depth; with the leaves in key order, every node at every
+// depth is a contiguous range of leaves. Per leaf the additive sums A = Σ a_i (eq. 1) and
 // S = Σ a_i N_i are kept, so a node's mean normal (eq. 2) is S/A and its weighted spread
 // (eq. 3) is σ² = Σ a_i |N_i − N̄|² / A = 1 − |S/A|² (the N_i are unit vectors): one
 // pass of sums gives every node.
@@ -33,7 +33,7 @@ struct NodeStats {
 class LinearOctree {
  public:
   // Builds the leaves at the depth whose node edge is leaf_size (m). Triangles may come
-  // in any order; the mesh is read twice and never sorted (see linear_octree.cpp).
+  // in any order; the triangles are never sorted (see leaf_sums.cpp).
   static LinearOctree build(const ingest::MeshView& mesh, double leaf_size);
 
   const std::vector<OctreeLeaf>& leaves() const { return leaves_; }
