@@ -670,7 +670,10 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   // Bound on the peak: the octree build's 36-byte record per run of triangles (one per
   // triangle at worst, random order) next to the tree itself, and the height map with its
   // working images.
-  st.working_bytes = tree.bytes() + 36 * mesh.triangle_count() + map.size() * (6 * 4 + 4 * 4 + 8);
+  // Octree table and prefix sums; the map's arrays and deviation images; the map's build
+  // (per leaf: map point and pixel; per pixel: front and normal sum).
+  st.working_bytes =
+      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 16 + map.size() * 16;
   lap("classify");
   return out;
 }

@@ -105,7 +105,7 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
 }
 
 std::size_t LinearOctree::bytes() const {
-  return leaves_.size() * sizeof(OctreeLeaf) + prefix_area_.capacity() * 8 +
+  return leaves_.capacity() * sizeof(OctreeLeaf) + prefix_area_.capacity() * 8 +
          prefix_an_.capacity() * sizeof(Eigen::Vector3d);
 }
 
