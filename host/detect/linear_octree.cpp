@@ -47,28 +47,35 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   tree.leaves_ = detail::accumulate_leaves(
       mesh, {tree.origin_.cast<float>(), static_cast<float>(1.0 / leaf_size), depth});
 
-  const std::size_t total = tree.leaves_.size();
-  tree.prefix_area_.resize(total + 1);
-  tree.prefix_an_.resize(total + 1);
-  tree.prefix_area_[0] = 0.0;
-  tree.prefix_an_[0].setZero();
-  for (std::size_t l = 0; l < total; ++l) {
-    tree.prefix_area_[l + 1] = tree.prefix_area_[l] + tree.leaves_[l].area;
-    tree.prefix_an_[l + 1] = tree.prefix_an_[l] + tree.leaves_[l].sum_an.cast<double>();
-  }
   return tree;
 }
 
-NodeStats LinearOctree::stats(std::size_t begin, std::size_t end) const {
+namespace {
+
+// Eq. (2)-(3) from a node's sums.
+NodeStats from_sums(double area, const Eigen::Vector3d& sum_an) {
   NodeStats s;
-  s.area = prefix_area_[end] - prefix_area_[begin];
-  if (!(s.area > 0.0)) return s;
-  s.mean_normal = (prefix_an_[end] - prefix_an_[begin]) / s.area;         // eq. (2)
+  s.area = area;
+  if (!(area > 0.0)) return s;
+  s.mean_normal = sum_an / area;                                          // eq. (2)
   s.sigma = std::sqrt(std::max(0.0, 1.0 - s.mean_normal.squaredNorm()));  // eq. (3)
   return s;
 }
 
+}  // namespace
+
+NodeStats LinearOctree::stats(std::size_t begin, std::size_t end) const {
+  double area = 0.0;
+  Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();
+  for (std::size_t l = begin; l < end; ++l)
+    area += leaves_[l].area, sum_an += leaves_[l].sum_an.cast<double>();
+  return from_sums(area, sum_an);
+}
+
 std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, double leaf_sigma) const {
+  // Top-down (eq. 3). A node's leaves are one range; one scan of it gives its eight
+  // children's ranges and sums, so each level costs one pass over the leaves still
+  // being split (no prefix arrays: 33 MB of fresh memory on a 9 M-triangle scan).
   std::vector<std::uint32_t> out;
   struct Node {
     std::size_t begin, end;
@@ -78,35 +85,37 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   while (!stack.empty()) {
     const Node node = stack.back();
     stack.pop_back();
-    if (node.begin >= node.end) continue;
-    if (node.level == depth_) {
-      // A leaf: one cell, one range of triangles.
-      if (stats(node.begin, node.end).sigma > leaf_sigma)
-        out.push_back(static_cast<std::uint32_t>(node.begin));
-      continue;
-    }
-    if (node.level > 0 && stats(node.begin, node.end).sigma <= split_sigma) continue;
-    // Children: the next three key bits; ranges found by binary search (keys sorted).
     const int shift = 3 * (depth_ - node.level - 1);
-    std::size_t b = node.begin;
     std::size_t bounds[9];
+    double area[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    Eigen::Vector3d sum_an[8];
+    for (auto& a : sum_an) a.setZero();
     bounds[0] = node.begin;
-    for (int c = 0; c < 8; ++c) {
-      const auto it = std::partition_point(
-          leaves_.begin() + static_cast<std::ptrdiff_t>(b),
-          leaves_.begin() + static_cast<std::ptrdiff_t>(node.end),
-          [&](const OctreeLeaf& l) { return static_cast<int>((l.key >> shift) & 7) <= c; });
-      b = static_cast<std::size_t>(it - leaves_.begin());
-      bounds[c + 1] = b;
+    int child = 0;
+    for (std::size_t l = node.begin; l < node.end; ++l) {
+      const auto c = static_cast<int>((leaves_[l].key >> shift) & 7);
+      while (child < c) bounds[++child] = l;
+      area[c] += leaves_[l].area;
+      sum_an[c] += leaves_[l].sum_an.cast<double>();
     }
-    for (int c = 7; c >= 0; --c) stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
+    while (child < 8) bounds[++child] = node.end;
+    for (int c = 7; c >= 0; --c) {
+      if (bounds[c] == bounds[c + 1]) continue;
+      const double sigma = from_sums(area[c], sum_an[c]).sigma;
+      if (node.level + 1 == depth_) {
+        // A leaf: one cell, one range of triangles.
+        if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(bounds[c]));
+      } else if (sigma > split_sigma) {
+        stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
+      }
+    }
   }
+  std::sort(out.begin(), out.end());
   return out;
 }
 
 std::size_t LinearOctree::bytes() const {
-  return leaves_.capacity() * sizeof(OctreeLeaf) + prefix_area_.capacity() * 8 +
-         prefix_an_.capacity() * sizeof(Eigen::Vector3d);
+  return leaves_.capacity() * sizeof(OctreeLeaf);
 }
 
 }  // namespace dentmark::detect

@@ -43,7 +43,7 @@ class LinearOctree {
   double leaf_size() const { return leaf_size_; }
   const Eigen::Vector3d& origin() const { return origin_; }
 
-  // Eq. (2)-(3) over leaves [begin, end).
+  // Eq. (2)-(3) over leaves [begin, end) (sums the range).
   NodeStats stats(std::size_t begin, std::size_t end) const;
   // Top-down subdivision (eq. 3): nodes whose σ exceeds split_sigma are subdivided down
   // to the finest depth; returns the leaves reached whose own σ exceeds leaf_sigma.
@@ -87,8 +87,6 @@ class LinearOctree {
   double leaf_size_ = 0.0;
   int depth_ = 0;
   std::vector<OctreeLeaf> leaves_;
-  std::vector<double> prefix_area_;  // prefix sums for O(1) node stats
-  std::vector<Eigen::Vector3d> prefix_an_;
 };
 
 }  // namespace dentmark::detect
