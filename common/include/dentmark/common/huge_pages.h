@@ -1,0 +1,15 @@
+#pragma once
+// Big jobs (a 9 M-triangle scan) touch hundreds of MB of fresh memory. On a VM every fresh
+// 4 KB page is a fault (~3 ms per MB); 2 MB transparent huge pages cut that ~20-fold.
+// Where the kernel gives them only on request (THP 'madvise', the usual default), glibc
+// asks for them for its heap when its tunable glibc.malloc.hugetlb=1 is set, which it reads
+// at start-up only. So the process re-executes itself once with the tunable added.
+
+namespace dentmark {
+
+// Call first in main (or from a static initialiser). Returns without doing anything when
+// the tunable is already set, when DENTMARK_HUGEPAGES=0, or when re-executing fails (no
+// /proc): the program then runs on small pages, only slower.
+void reexec_with_huge_pages();
+
+}  // namespace dentmark
