@@ -237,8 +237,11 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       }
       if (e.name == "vertex" && (ix < 0 || iy < 0 || iz < 0))
         throw IngestError(path + ": vertex element lacks x, y or z");
-      if (e.name == "vertex") mesh.vertices.reserve(e.count);
-      if (e.name == "face") mesh.triangles.reserve(e.count);
+      // A record takes at least two bytes ("0\n"): a header that claims more than the file
+      // can hold is reported where the file ends, not by a failed allocation.
+      const std::uint64_t can_hold = (bytes.size() - body) / 2;
+      if (e.name == "vertex") mesh.vertices.reserve(std::min(e.count, can_hold));
+      if (e.name == "face") mesh.triangles.reserve(std::min(e.count, can_hold));
       for (std::uint64_t r = 0; r < e.count; ++r) {
         cur.skip_space();
         if (cur.at_end())
@@ -337,7 +340,7 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       continue;
     }
     const bool is_face = e.name == "face";
-    if (is_face) mesh.triangles.reserve(e.count);
+    if (is_face) mesh.triangles.reserve(std::min<std::uint64_t>(e.count, size - off));  // a record: >= 1 byte
     // Common layout first: a single list property of uchar/int counts with 3 corners.
     const bool simple = is_face && e.properties.size() == 1 && e.properties[0].is_list;
     const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;

@@ -410,5 +410,27 @@ TEST(Scan, RandomMeshesReadTheSameInPlaceAndCopied) {
   }
 }
 
+TEST(Ingest, HeaderCountsBeyondTheFileAreReportedNotAllocated) {
+  // 10^12 vertices or faces claimed by a few hundred bytes: an error naming the file and
+  // where it ends, never std::bad_alloc.
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex ";
+  const std::string props = "\nproperty float x\nproperty float y\nproperty float z\nelement face ";
+  const std::string tail =
+      "\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  for (const auto& [nv, nf] :
+       {std::pair<const char*, const char*>{"999999999999", "1"}, {"3", "999999999999"}}) {
+    try {
+      read_mesh(write_file("huge.ply", head + nv + props + nf + tail));
+      ADD_FAILURE() << nv << " / " << nf << " accepted";
+    } catch (const IngestError& e) {
+      EXPECT_NE(std::string(e.what()).find("huge.ply: line "), std::string::npos) << e.what();
+    }
+  }
+  std::string binary = "ply\nformat binary_little_endian 1.0\nelement vertex 3" + props + "999999999999" +
+                       "\nproperty list uchar int vertex_indices\nproperty uchar flags\nend_header\n";
+  for (int i = 0; i < 9; ++i) put<float>(binary, static_cast<float>(i));
+  EXPECT_THROW(read_mesh(write_file("huge_binary.ply", binary)), IngestError);
+}
+
 }  // namespace
 }  // namespace dentmark::ingest
