@@ -667,13 +667,10 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;
-  // Bound on the peak: the octree build's 36-byte record per run of triangles (one per
-  // triangle at worst, random order) next to the tree itself, and the height map with its
-  // working images.
-  // Octree table and prefix sums; the map's arrays and deviation images; the map's build
-  // (per leaf: map point and pixel; per pixel: front and normal sum).
+  // Working memory: the octree's leaves and the records of its build; the map's arrays and
+  // deviation images; the map's build (per leaf: pixel; per pixel: front and normal sum).
   st.working_bytes =
-      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 16 + map.size() * 16;
+      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 16;
   lap("classify");
   return out;
 }

@@ -45,7 +45,7 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   tree.leaf_size_ = leaf_size;
   tree.origin_ = lo.cast<double>() - Eigen::Vector3d::Constant(0.5 * leaf_size);
   tree.leaves_ = detail::accumulate_leaves(
-      mesh, {tree.origin_.cast<float>(), static_cast<float>(1.0 / leaf_size), depth});
+      mesh, {tree.origin_.cast<float>(), static_cast<float>(1.0 / leaf_size), depth}, &tree.build_bytes_);
 
   return tree;
 }
@@ -115,7 +115,7 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
 }
 
 std::size_t LinearOctree::bytes() const {
-  return leaves_.capacity() * sizeof(OctreeLeaf);
+  return leaves_.size() * sizeof(OctreeLeaf) + build_bytes_;  // capacity beyond: never touched
 }
 
 }  // namespace dentmark::detect

@@ -59,7 +59,7 @@ class LinearOctree {
            spread3(static_cast<std::uint64_t>(cell.z())) << 2;
   }
 
-  // Sizes for memory accounting.
+  // Memory: the leaves, and the peak of their build (records filed per bucket).
   std::size_t bytes() const;
 
  private:
@@ -87,6 +87,7 @@ class LinearOctree {
   double leaf_size_ = 0.0;
   int depth_ = 0;
   std::vector<OctreeLeaf> leaves_;
+  std::size_t build_bytes_ = 0;  // peak memory of the build, beyond the leaves
 };
 
 }  // namespace dentmark::detect
