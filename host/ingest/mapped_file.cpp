@@ -22,12 +22,13 @@ MappedFile::MappedFile(const std::string& path) {
   }
   size_ = static_cast<std::size_t>(st.st_size);
   if (size_ > 0) {
+    // Populated up front: a scan used in place is then read at random (vertex gathers),
+    // so no sequential-access advice either.
     void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
     if (p == MAP_FAILED) {
       ::close(fd);
       throw IngestError(path + ": cannot map: " + std::strerror(errno));
     }
-    ::madvise(p, size_, MADV_SEQUENTIAL);
     data_ = static_cast<const char*>(p);
     mapped_ = true;
   } else {
