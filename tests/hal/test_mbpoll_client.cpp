@@ -79,6 +79,9 @@ TEST_F(MbpollClient, DrivesTheSimulatorThroughTheDocumentedMap) {
 
   // Spray 40 ms, sequence 2; then read the 32-bit spray counter as mbpoll -B int.
   mbpoll({"-t", "4", "-r", "0", "127.0.0.1", "2", "2", "2", "40"});
+  // The simulator replies to the write before it acts on the command block (as a
+  // controller does: the reply only confirms the registers): wait for the spray.
+  for (int i = 0; i < 200 && sim_->sprays().empty(); ++i) clock_.sleep_for(0.01);
   ASSERT_EQ(sim_->sprays().size(), 1u);
   EXPECT_EQ(sim_->sprays()[0].sequence, 2);
   EXPECT_DOUBLE_EQ(sim_->sprays()[0].duration, 0.04);
