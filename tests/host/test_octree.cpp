@@ -149,8 +149,8 @@ TEST(LinearOctree, LeafSumsEqualBruteForcePerCell) {
 }
 
 TEST(LinearOctree, FarMoreLeavesThanTheSurfaceAreaSuggestsAreAllKept) {
-  // Tiny slivers scattered through a 0.2 m cube: almost no area, one leaf each. The leaf
-  // table, sized from the area, fills up and is rebuilt bigger (several times).
+  // Tiny slivers scattered through a 0.2 m cube: almost no area, one leaf and one record
+  // each, spread over many buckets (and no open leaf ever hit).
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.0f, 0.2f), d(-1e-6f, 1e-6f);
   ingest::Mesh m = grid_mesh(20, 0.0005, [](double, double) { return 0.0; });
