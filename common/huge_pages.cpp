@@ -10,9 +10,18 @@
 #include <vector>
 
 namespace dentmark {
+namespace {
+
+constexpr const char* kTunable = "glibc.malloc.hugetlb=1";
+
+}  // namespace
+
+bool huge_pages_requested() {
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  return tunables && std::strstr(tunables, kTunable);
+}
 
 void reexec_with_huge_pages() {
-  constexpr const char* kTunable = "glibc.malloc.hugetlb=1";
   const char* off = std::getenv("DENTMARK_HUGEPAGES");
   if (off && std::strcmp(off, "0") == 0) return;
   const char* current = std::getenv("GLIBC_TUNABLES");

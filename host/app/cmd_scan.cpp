@@ -4,11 +4,10 @@
 
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <memory>
 
 #include "commands.h"
+#include "dentmark/common/huge_pages.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/dml_file.h"
 #include "dentmark/host/detect/detector.h"
@@ -113,11 +112,9 @@ int run_detect(const DetectArgs& a) {
         static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
     struct rusage usage {};
     ::getrusage(RUSAGE_SELF, &usage);
-    const char* tunables = std::getenv("GLIBC_TUNABLES");
-    std::printf(
-        "memory: %s, peak resident %.0f MB (the mapped scan included)\n",
-        tunables && std::strstr(tunables, "glibc.malloc.hugetlb=1") ? "huge pages requested" : "small pages",
-        static_cast<double>(usage.ru_maxrss) / 1024.0);
+    std::printf("memory: %s, peak resident %.0f MB (the mapped scan included)\n",
+                huge_pages_requested() ? "huge pages requested" : "small pages",
+                static_cast<double>(usage.ru_maxrss) / 1024.0);
     for (const auto& [stage, sec] : det.timing) std::printf("timing %-10s %8.3f s\n", stage.c_str(), sec);
     std::printf("timing %-10s %8.3f s\ntiming %-10s %8.3f s\n", "write",
                 std::chrono::duration<double>(end - t_detect).count(), "total",

@@ -117,6 +117,15 @@ std::int64_t load_index(const char* p, Scalar s, bool swap) {
   return static_cast<std::int64_t>(v);
 }
 
+// The usual 13-byte face record (uchar 3, three native 32-bit indices): true and the
+// corners in v when it is a triangle with every index below nv. As unsigned, a negative
+// int32 index is >= 2^31, so the range check rejects it as well.
+inline bool triangle_record(const char* q, std::uint64_t nv, bool signed_index, std::uint32_t v[3]) {
+  std::memcpy(v, q + 1, 3 * sizeof(std::uint32_t));
+  return static_cast<std::uint8_t>(q[0]) == 3 && v[0] < nv && v[1] < nv && v[2] < nv &&
+         !(signed_index && (v[0] | v[1] | v[2]) >= 0x80000000u);
+}
+
 // Adds a polygon as a fan; drops faces with < 3 corners or out-of-range indices fail.
 class FaceSink {
  public:
@@ -361,12 +370,8 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       if (native32) {
 #pragma omp parallel for schedule(static) reduction(min : bad)
         for (std::int64_t r = 0; r < count; ++r) {
-          const char* q = src + r * static_cast<std::int64_t>(rec);
           std::uint32_t v[3];
-          std::memcpy(v, q + 1, sizeof v);
-          // As signed (int32) a negative index is >= 2^31 as unsigned: rejected as well.
-          if (static_cast<std::uint8_t>(q[0]) != 3 || v[0] >= nv || v[1] >= nv || v[2] >= nv ||
-              (it == Scalar::kI32 && (v[0] | v[1] | v[2]) >= 0x80000000u)) {
+          if (!triangle_record(src + r * static_cast<std::int64_t>(rec), nv, it == Scalar::kI32, v)) {
             bad = std::min(bad, r);
             continue;
           }
@@ -485,16 +490,11 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
   const char* const faces = bytes.data() + face_block;
   const char* const vertices = bytes.data() + vertex_block + xyz;
   const auto nf = static_cast<std::int64_t>(face_count), nv = static_cast<std::int64_t>(vertex_count);
-  const std::uint32_t limit = static_cast<std::uint32_t>(vertex_count);
   std::int64_t bad = 0;
 #pragma omp parallel for schedule(static) reduction(+ : bad)
   for (std::int64_t r = 0; r < nf; ++r) {
-    const char* q = faces + 13 * r;
     std::uint32_t v[3];
-    std::memcpy(v, q + 1, sizeof v);
-    // A negative int32 is >= 2^31 as unsigned, so the range check rejects it as well.
-    bad += static_cast<std::uint8_t>(q[0]) != 3 || v[0] >= limit || v[1] >= limit || v[2] >= limit ||
-           (signed_index && (v[0] | v[1] | v[2]) >= 0x80000000u);
+    bad += !triangle_record(faces + 13 * r, vertex_count, signed_index, v);
   }
   if (bad != 0) return std::nullopt;
 #pragma omp parallel for schedule(static) reduction(+ : bad)

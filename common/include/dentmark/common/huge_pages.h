@@ -12,4 +12,7 @@ namespace dentmark {
 // /proc): the program then runs on small pages, only slower.
 void reexec_with_huge_pages();
 
+// Whether this process runs with glibc's huge-page tunable set (for reports).
+bool huge_pages_requested();
+
 }  // namespace dentmark
