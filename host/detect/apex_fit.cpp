@@ -13,6 +13,11 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
   std::vector<std::pair<std::int32_t, Eigen::Vector3f>> found;
   const Eigen::Matrix3f axes = map.axes.cast<float>();
   const Eigen::Vector3f origin = map.origin.cast<float>();
+  // Pixel of a point as HeightMap::pixel_of, in floats (map coordinates within metres of
+  // the origin: 0.1 µm), multiplied by the inverse: a streaming pass over every vertex.
+  const auto u0 = static_cast<float>(map.u0), v0 = static_cast<float>(map.v0);
+  const auto inv = static_cast<float>(1.0 / map.pixel);
+  const auto cols = static_cast<float>(map.cols), rows = static_cast<float>(map.rows);
   const auto n = static_cast<std::int64_t>(mesh.vertex_count());
 #pragma omp parallel
   {
@@ -20,9 +25,10 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
 #pragma omp for schedule(static) nowait
     for (std::int64_t i = 0; i < n; ++i) {
       const Eigen::Vector3f q = axes * (mesh.vertex(static_cast<std::size_t>(i)) - origin);
-      if (!q.allFinite()) continue;
-      const long k = map.pixel_of(q.x(), q.y());
-      if (k >= 0 && select[static_cast<std::size_t>(k)]) mine.emplace_back(static_cast<std::int32_t>(k), q);
+      const float c = (q.x() - u0) * inv, r = (q.y() - v0) * inv;
+      if (!(c >= 0.0f && r >= 0.0f && c < cols && r < rows)) continue;  // also NaN
+      const auto k = static_cast<std::int32_t>(r) * map.cols + static_cast<std::int32_t>(c);
+      if (select[static_cast<std::size_t>(k)]) mine.emplace_back(k, q);
     }
 #pragma omp critical
     found.insert(found.end(), mine.begin(), mine.end());

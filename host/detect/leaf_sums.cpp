@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <new>
 
@@ -19,24 +20,39 @@ namespace {
 // sorted order costs two random passes over memory. Instead one pass files each
 // triangle's contribution under its coarse bucket (8^kBucketLevels cells of the octree)
 // in chains of small chunks, and each bucket, tens of thousands of records that fit in
-// the cache, is summed through a small hash table on the remaining key bits. A leaf's
-// triangles are summed in an "open leaf" (a small direct-mapped table) before they are
-// filed; in sensor order they come back row after row to their open leaf, so an ordered
-// scan files about one record per leaf (1.25 M for 8.9 M triangles). Tried and measured
-// slower: one hash table of leaves shared by the threads instead of records (0.37 -> 0.51 s
-// in sensor order, no gain in random order: its random slot updates cost what the
-// records' streaming does).
-constexpr int kBucketLevels = 4;   // 4 096 buckets: their chain tails stay in L1/L2
-constexpr int kChunkRecords = 62;  // a chunk is ~2.2 KB
-constexpr int kPrefetch = 24;      // triangles ahead: hides the random vertex reads
+// the cache, is summed through a small hash table on the remaining key bits.
+//
+// In sensor order a leaf's triangles come back row after row, so they are first summed
+// in an "open leaf" (a small direct-mapped table) and about one record per leaf is filed
+// (1.25 M for 8.9 M triangles). In random order the open leaves are never met again and
+// only cost a cache miss each: blocks whose triangles mostly miss them switch to filing
+// every triangle directly, and every 16th block looks again.
+//
+// Tried and measured slower: one hash table of leaves shared by the threads instead of
+// records (0.37 -> 0.51 s in sensor order, no gain in random order: its random slot
+// updates cost what the records' streaming does).
+constexpr int kBucketLevels = 4;           // 4 096 buckets: their chain tails stay in L1/L2
+constexpr int kChunkRecords = 78;          // a chunk is ~2.2 KB
+constexpr int kPrefetch = 48;              // triangles ahead: hides the random vertex reads
+constexpr int kBatch = 64;                 // triangles whose geometry is computed together
+constexpr std::size_t kModeBlock = 16384;  // triangles per open/direct decision
+constexpr int kRecheckEvery = 16;          // direct blocks between two open ones
 
-struct Record {         // 36 bytes: the sums of some triangles in one leaf
-  std::uint32_t cell;   // key bits below the bucket
-  std::uint32_t count;  // triangles
-  float area;           // Σ a_i
-  float an[3];          // Σ a_i N_i
-  float ac[3];          // Σ a_i (c_i − leaf corner): small numbers keep float precision
+// The sums of some triangles in one leaf, 28 bytes: in random order one is filed per
+// triangle, so its size is the stream's. The centroid is kept as the area-weighted mean
+// position in the leaf, in 1/65536 of its edge (15 nm at 1 mm).
+struct Record {
+  std::uint32_t cell;  // key bits below the bucket
+  float area;          // Σ a_i
+  float an[3];         // Σ a_i N_i
+  std::uint16_t mean[3];
+  std::uint16_t count;  // triangles (an open leaf is filed before it reaches 65 535)
 };
+static_assert(sizeof(Record) == 28);
+
+std::uint16_t quantize(float f) {  // position in the leaf, [0, 1] -> 1/65536 steps
+  return static_cast<std::uint16_t>(std::clamp(f * 65536.0f + 0.5f, 0.0f, 65535.0f));
+}
 
 // A leaf being summed in pass 1, before it is filed as a record. 8 192 of them (320 KB)
 // stay in a core's L2.
@@ -47,7 +63,7 @@ struct OpenLeaf {
   std::uint32_t count = 0;
   float area = 0.0f;
   float an[3] = {0, 0, 0};
-  float ac[3] = {0, 0, 0};
+  float af[3] = {0, 0, 0};  // Σ a_i f_i, f_i the centroid's position in the leaf (edge = 1)
 };
 
 struct Chunk {
@@ -100,11 +116,47 @@ class ChunkStore {
   std::size_t used_ = 0;
 };
 
-// Sums one bucket's records (from every thread's chain) into leaves, in Morton order.
+// The geometry of kBatch triangles, computed together (the arithmetic vectorises; the
+// vertex reads are gathers).
+struct TriangleBatch {
+  float v[3][3][kBatch];  // vertex, axis, triangle
+  float an[3][kBatch];    // a_i N_i
+  float area[kBatch];     // a_i
+  float f[3][kBatch];     // centroid's position in its cell (edge = 1)
+  std::int32_t cell[3][kBatch];
+
+  void compute(const LeafGrid& grid) {
+    const float cells_max = static_cast<float>((1 << grid.depth) - 1);
+#pragma omp simd
+    for (int j = 0; j < kBatch; ++j) {
+      const float e1[3] = {v[1][0][j] - v[0][0][j], v[1][1][j] - v[0][1][j], v[1][2][j] - v[0][2][j]};
+      const float e2[3] = {v[2][0][j] - v[0][0][j], v[2][1][j] - v[0][1][j], v[2][2][j] - v[0][2][j]};
+      // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
+      const float nx = 0.5f * (e1[1] * e2[2] - e1[2] * e2[1]);
+      const float ny = 0.5f * (e1[2] * e2[0] - e1[0] * e2[2]);
+      const float nz = 0.5f * (e1[0] * e2[1] - e1[1] * e2[0]);
+      an[0][j] = nx, an[1][j] = ny, an[2][j] = nz;
+      area[j] = std::sqrt(nx * nx + ny * ny + nz * nz);
+      locate(grid, cells_max, 0, j), locate(grid, cells_max, 1, j), locate(grid, cells_max, 2, j);
+    }
+  }
+  // The centroid's cell along axis a, as LeafGrid::cell to the last bit (the same
+  // triangle lands in the same leaf), and its position in the cell.
+  [[gnu::always_inline]] void locate(const LeafGrid& grid, float cells_max, int a, int j) {
+    const float c = (v[0][a][j] + v[1][a][j] + v[2][a][j]) * (1.0f / 3.0f);
+    const float g = (c - grid.origin[a]) * grid.inv_leaf;
+    const auto q = static_cast<std::int32_t>(std::min(std::max(g, 0.0f), cells_max));
+    cell[a][j] = q;
+    f[a][j] = g - static_cast<float>(q);
+  }
+};
+
+// Sums one bucket's records (from every thread's chain) into leaves, in Morton order,
+// written from `out` on; returns the number written.
 class BucketSummer {
  public:
-  void sum(const std::vector<const Chunk*>& chains, std::uint64_t records_hint, std::uint64_t bucket,
-           int low_bits, const LeafGrid& grid, std::vector<OctreeLeaf>& out) {
+  std::size_t sum(const std::vector<const Chunk*>& chains, std::uint64_t records_hint, std::uint64_t bucket,
+                  int low_bits, const LeafGrid& grid, OctreeLeaf* out) {
     std::size_t size = 16;
     while (size < 2 * records_hint) size <<= 1;
     int shift = 32;
@@ -119,37 +171,46 @@ class BucketSummer {
             h = (h + 1) & (size - 1);
           if (slots_[h] < 0) {
             slots_[h] = static_cast<std::int32_t>(sums_.size());
-            sums_.push_back(Record{r.cell, 0, 0.0f, {0, 0, 0}, {0, 0, 0}});
+            sums_.push_back(Sum{r.cell});
           }
-          Record& l = sums_[static_cast<std::size_t>(slots_[h])];
+          Sum& l = sums_[static_cast<std::size_t>(slots_[h])];
           l.count += r.count;
           l.area += r.area;
-          for (int a = 0; a < 3; ++a) l.an[a] += r.an[a], l.ac[a] += r.ac[a];
+          for (int a = 0; a < 3; ++a)
+            l.an[a] += r.an[a], l.af[a] += r.area * (static_cast<float>(r.mean[a]) * (1.0f / 65536.0f));
         }
     order_.resize(sums_.size());
-    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = static_cast<std::uint32_t>(i);
-    std::sort(order_.begin(), order_.end(),
-              [&](std::uint32_t a, std::uint32_t b) { return sums_[a].cell < sums_[b].cell; });
-    const float half = 0.5f / grid.inv_leaf;
-    for (auto i : order_) {
-      const Record& r = sums_[i];
-      OctreeLeaf& l = out.emplace_back();
+    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = std::uint64_t{sums_[i].cell} << 32 | i;
+    std::sort(order_.begin(), order_.end());
+    const float leaf = 1.0f / grid.inv_leaf;
+    for (const std::uint64_t o : order_) {
+      const Sum& r = sums_[static_cast<std::uint32_t>(o)];
+      OctreeLeaf& l = *out++;
       l.key = bucket << low_bits | r.cell;
       l.count = r.count;
       l.area = r.area;
       l.sum_an = Eigen::Vector3f(r.an[0], r.an[1], r.an[2]);
-      const Eigen::Vector3f offset =
-          r.area > 0.0f ? Eigen::Vector3f(Eigen::Vector3f(r.ac[0], r.ac[1], r.ac[2]) / r.area)
-                        : Eigen::Vector3f::Constant(half);
-      l.centroid = grid.corner(l.key) + offset;
+      const Eigen::Vector3f mean = r.area > 0.0f
+                                       ? Eigen::Vector3f(Eigen::Vector3f(r.af[0], r.af[1], r.af[2]) / r.area)
+                                       : Eigen::Vector3f::Constant(0.5f);
+      l.centroid = grid.corner(l.key) + mean * leaf;
     }
+    const std::size_t written = sums_.size();
     sums_.clear();
+    return written;
   }
 
  private:
+  struct Sum {
+    std::uint32_t cell;
+    std::uint32_t count = 0;
+    float area = 0.0f;
+    float an[3] = {0, 0, 0};
+    float af[3] = {0, 0, 0};
+  };
   std::vector<std::int32_t> slots_;
-  std::vector<Record> sums_;  // one per leaf, in order of first appearance
-  std::vector<std::uint32_t> order_;
+  std::vector<Sum> sums_;             // one per leaf, in order of first appearance
+  std::vector<std::uint64_t> order_;  // cell << 32 | index into sums_
 };
 
 int thread_count() {
@@ -168,10 +229,120 @@ int thread_id() {
 #endif
 }
 
+// Pass 1 over one thread's slice of the triangles.
+class LeafFiler {
+ public:
+  LeafFiler(const LeafGrid& grid, int low_bits, ChunkStore& store)
+      : grid_(grid), low_bits_(low_bits), low_mask_((std::uint64_t{1} << low_bits) - 1), store_(store) {}
+
+  void run(const ingest::MeshView& mesh, std::size_t b, std::size_t e) {
+    TriangleBatch batch;
+    int blocks_direct = 0;  // direct blocks since the last open one
+    for (std::size_t block = b; block < e; block += kModeBlock) {
+      const std::size_t block_end = std::min(e, block + kModeBlock);
+      misses_ = 0;
+      for (std::size_t i = block; i < block_end; i += kBatch) {
+        const int m = static_cast<int>(std::min<std::size_t>(kBatch, block_end - i));
+        gather(mesh, i, m, e, batch);
+        batch.compute(grid_);
+        if (direct_)
+          file_each(batch, m);
+        else
+          sum_open(batch, m);
+      }
+      if (direct_) {
+        if (++blocks_direct == kRecheckEvery) direct_ = false, blocks_direct = 0;
+      } else {
+        direct_ = 2 * misses_ > block_end - block;
+      }
+    }
+    for (const OpenLeaf& l : open_)
+      if (l.count > 0) file(l);
+  }
+
+ private:
+  static void gather(const ingest::MeshView& mesh, std::size_t first, int m, std::size_t end,
+                     TriangleBatch& batch) {
+    for (int j = 0; j < m; ++j) {
+      const std::size_t i = first + static_cast<std::size_t>(j);
+      if (i + kPrefetch < end) {
+        const auto f = mesh.triangle(i + kPrefetch);
+        for (int k = 0; k < 3; ++k) __builtin_prefetch(mesh.vertex_address(f[k]));
+      }
+      const auto tri = mesh.triangle(i);
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3f p = mesh.vertex(tri[k]);
+        for (int a = 0; a < 3; ++a) batch.v[k][a][j] = p[a];
+      }
+    }
+    for (int j = m; j < kBatch; ++j)  // the tail repeats the last triangle; never summed
+      for (int k = 0; k < 3; ++k)
+        for (int a = 0; a < 3; ++a) batch.v[k][a][j] = batch.v[k][a][m - 1];
+  }
+
+  std::uint64_t key_of(const TriangleBatch& t, int j) const {
+    return LinearOctree::encode({t.cell[0][j], t.cell[1][j], t.cell[2][j]});
+  }
+
+  // Sensor order: a leaf's triangles meet their open leaf.
+  void sum_open(const TriangleBatch& t, int m) {
+    for (int j = 0; j < m; ++j) {
+      const Eigen::Vector3i cell(t.cell[0][j], t.cell[1][j], t.cell[2][j]);
+      if (cell != last_cell_ || last_->count == 0xffff) {  // mostly the same leaf
+        const std::uint64_t key = LinearOctree::encode(cell);
+        last_ = &open_[(key * 0x9E3779B97F4A7C15ull) >> (64 - kOpenLeafBits)];
+        if (last_->key != key || last_->count == 0xffff) {
+          ++misses_;
+          if (last_->count > 0) file(*last_);
+          *last_ = OpenLeaf{key};
+        }
+        last_cell_ = cell;
+      }
+      OpenLeaf& l = *last_;
+      const float a = t.area[j];
+      l.count += 1;
+      l.area += a;
+      for (int k = 0; k < 3; ++k) l.an[k] += t.an[k][j], l.af[k] += a * t.f[k][j];
+    }
+  }
+
+  // Random order: one record per triangle.
+  void file_each(const TriangleBatch& t, int m) {
+    for (int j = 0; j < m; ++j) {
+      const std::uint64_t key = key_of(t, j);
+      Record& r = store_.append(key >> low_bits_);
+      r.cell = static_cast<std::uint32_t>(key & low_mask_);
+      r.area = t.area[j];
+      for (int k = 0; k < 3; ++k) r.an[k] = t.an[k][j], r.mean[k] = quantize(t.f[k][j]);
+      r.count = 1;
+    }
+  }
+
+  void file(const OpenLeaf& l) {
+    Record& r = store_.append(l.key >> low_bits_);
+    r.cell = static_cast<std::uint32_t>(l.key & low_mask_);
+    r.area = l.area;
+    for (int k = 0; k < 3; ++k)
+      r.an[k] = l.an[k], r.mean[k] = quantize(l.area > 0.0f ? l.af[k] / l.area : 0.5f);
+    r.count = static_cast<std::uint16_t>(l.count);
+  }
+
+  const LeafGrid& grid_;
+  const int low_bits_;
+  const std::uint64_t low_mask_;
+  ChunkStore& store_;
+  // Open leaves, direct-mapped by key.
+  std::vector<OpenLeaf> open_ = std::vector<OpenLeaf>(kOpenLeaves);
+  OpenLeaf* last_ = &open_[0];
+  Eigen::Vector3i last_cell_ = Eigen::Vector3i::Constant(-1);
+  bool direct_ = false;
+  std::size_t misses_ = 0;  // leaf changes that found no open leaf, this block
+};
+
 }  // namespace
 
-std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
-                                          std::size_t* record_bytes) {
+OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
+                               std::size_t* record_bytes) {
   const std::size_t n = mesh.triangle_count();
   // At least depth - 10 bucket levels, so that a record's cell (the bits below) fits 32 bits.
   const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
@@ -187,56 +358,13 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const Le
     const std::size_t b = n * t / static_cast<std::size_t>(threads),
                       e = n * (t + 1) / static_cast<std::size_t>(threads);
     stores[t] = std::make_unique<ChunkStore>(buckets);
-    ChunkStore& store = *stores[t];
-    const std::uint64_t low_mask = (std::uint64_t{1} << low_bits) - 1;
-    // Open leaves, direct-mapped by key: in sensor order a leaf's triangles come back
-    // row after row and meet their open leaf here, so about one record per leaf is filed.
-    std::vector<OpenLeaf> open(kOpenLeaves);
-    OpenLeaf* last = &open[0];
-    Eigen::Vector3i last_cell(-1, -1, -1);
-    Eigen::Vector3f corner = Eigen::Vector3f::Zero();
-    const auto file = [&](const OpenLeaf& l) {
-      Record& r = store.append(l.key >> low_bits);
-      r.cell = static_cast<std::uint32_t>(l.key & low_mask);
-      r.count = l.count;
-      r.area = l.area;
-      std::copy(l.an, l.an + 3, r.an);
-      std::copy(l.ac, l.ac + 3, r.ac);
-    };
-    for (std::size_t i = b; i < e; ++i) {
-      if (i + kPrefetch < e) {
-        const auto f = mesh.triangle(i + kPrefetch);
-        for (int k = 0; k < 3; ++k) __builtin_prefetch(mesh.vertex_address(f[k]));
-      }
-      const auto tri = mesh.triangle(i);
-      const Eigen::Vector3f va = mesh.vertex(tri[0]), vb = mesh.vertex(tri[1]), vc = mesh.vertex(tri[2]);
-      const Eigen::Vector3f c = (va + vb + vc) * (1.0f / 3.0f);
-      // Eq. (1): a_i = |v1 x v2| / 2, and a_i N_i is half the cross product itself.
-      const Eigen::Vector3f an = 0.5f * (vb - va).cross(vc - va);
-      const float area = an.norm();
-      const Eigen::Vector3i cell = grid.cell(c);
-      if (cell != last_cell || last->count == ~0u) {  // sensor order: mostly the same leaf
-        const std::uint64_t key = LinearOctree::encode(cell);
-        last = &open[(key * 0x9E3779B97F4A7C15ull) >> (64 - kOpenLeafBits)];
-        if (last->key != key || last->count == ~0u) {
-          if (last->count > 0) file(*last);
-          *last = OpenLeaf{key};
-        }
-        last_cell = cell, corner = grid.corner(cell);
-      }
-      // Centroids relative to the cell's corner: small numbers keep float precision.
-      const Eigen::Vector3f ac = area * (c - corner);
-      OpenLeaf& l = *last;
-      l.count += 1;
-      l.area += area;
-      for (int a = 0; a < 3; ++a) l.an[a] += an[a], l.ac[a] += ac[a];
-    }
-    for (const OpenLeaf& l : open)
-      if (l.count > 0) file(l);
+    LeafFiler(grid, low_bits, *stores[t]).run(mesh, b, e);
   }
 
-  // Pass 2: buckets in key order, split between threads by record count; each thread's
-  // leaves come out sorted and the parts are concatenated in thread order.
+  // Pass 2: buckets in key order, split between threads by record count. A bucket has at
+  // least as many records as leaves, so each thread writes its leaves from its first
+  // bucket's record offset on, and the parts are then moved together. Never touched: the
+  // array beyond the leaves (address space only).
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
@@ -245,7 +373,8 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const Le
   }
   const std::uint64_t records = start[buckets];
   if (record_bytes) *record_bytes = static_cast<std::size_t>(records) * sizeof(Record);
-  std::vector<std::vector<OctreeLeaf>> parts(static_cast<std::size_t>(threads));
+  OctreeLeaves leaves(records);
+  std::vector<std::size_t> part_begin(static_cast<std::size_t>(threads)), part_size(part_begin.size());
 #pragma omp parallel num_threads(threads)
   {
     const auto t = static_cast<std::size_t>(thread_id());
@@ -254,23 +383,27 @@ std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const Le
       return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * slice / nt) -
                                       start.begin());
     };
-    const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
-    // A leaf holds at least one record, so this never regrows; the capacity beyond the
-    // leaves is address space only, never touched. Thread 0's part receives the others.
-    auto& out = parts[t];
-    out.reserve(t == 0 ? records : start[ke] - start[kb]);
+    const std::size_t kb = t == 0 ? 0 : first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
+    part_begin[t] = start[kb];
+    std::size_t written = 0;
     BucketSummer summer;
     std::vector<const Chunk*> chains(stores.size());
     for (std::size_t k = kb; k < ke; ++k) {
       if (start[k + 1] == start[k]) continue;
       for (std::size_t s = 0; s < stores.size(); ++s) chains[s] = stores[s]->head(k);
-      summer.sum(chains, start[k + 1] - start[k], k, low_bits, grid, out);
+      written += summer.sum(chains, start[k + 1] - start[k], k, low_bits, grid,
+                            leaves.data() + part_begin[t] + written);
     }
+    part_size[t] = written;
   }
   stores.clear();
-  std::vector<OctreeLeaf> leaves = std::move(parts[0]);
-  for (std::size_t p = 1; p < parts.size(); ++p)
-    leaves.insert(leaves.end(), parts[p].begin(), parts[p].end());
+  std::size_t total = 0;
+  for (std::size_t p = 0; p < part_begin.size(); ++p) {
+    std::memmove(static_cast<void*>(leaves.data() + total), leaves.data() + part_begin[p],
+                 part_size[p] * sizeof(OctreeLeaf));
+    total += part_size[p];
+  }
+  leaves.resize(total);
   return leaves;
 }
 

@@ -40,7 +40,7 @@ inline Eigen::Vector3f triangle_centroid(const ingest::MeshView& m, const std::a
 
 // Leaves in Morton order, with A, S = Σ a_i N_i, Σ a_i c_i and the triangle count.
 // record_bytes, if given, receives the peak memory of the records filed on the way.
-std::vector<OctreeLeaf> accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
-                                          std::size_t* record_bytes = nullptr);
+OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
+                               std::size_t* record_bytes = nullptr);
 
 }  // namespace dentmark::detect::detail

@@ -11,6 +11,7 @@
 
 #include "dentmark/common/huge_pages.h"
 #include "dentmark/host/detect/detector.h"
+#include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/report/defects_json.h"
@@ -71,6 +72,20 @@ void BM_Detect(benchmark::State& state) {
       static_cast<double>(bytes) / static_cast<double>(mesh.triangles.size());
 }
 BENCHMARK(BM_Detect)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+
+// The octree's leaf sums alone (eq. 1-2 for every occupied finest node), 1 mm nodes.
+void BM_OctreeBuild(benchmark::State& state) {
+  const ingest::Mesh& mesh = big_mesh(state.range(0) != 0);
+  std::size_t leaves = 0;
+  for (auto _ : state) {
+    const auto tree = detect::LinearOctree::build(mesh, 0.001);
+    leaves = tree.leaves().size();
+    benchmark::DoNotOptimize(tree);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * mesh.triangles.size()));
+  state.counters["leaves"] = static_cast<double>(leaves);
+}
+BENCHMARK(BM_OctreeBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 void BM_ReadDetectWrite(benchmark::State& state) {
   const std::string dir = std::filesystem::temp_directory_path().string();

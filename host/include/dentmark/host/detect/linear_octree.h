@@ -8,6 +8,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
+#include <new>
+#include <utility>
 #include <vector>
 
 #include "dentmark/host/ingest/mesh_view.h"
@@ -16,13 +19,37 @@ namespace dentmark::detect {
 
 // 40 bytes: a million leaves are fresh memory, and floats hold what a leaf needs (the
 // centroid to 0.1 µm over 2 m; A and S to 1e-7, far below the σ² of a scan's noise).
+// Plain data, set in full where leaves are made: an array of them is allocated without
+// being touched first (see OctreeLeaves).
 struct OctreeLeaf {
-  std::uint64_t key = 0;                               // Morton code at the finest depth
-  float area = 0.0f;                                   // A = Σ a_i (m²)
-  Eigen::Vector3f sum_an = Eigen::Vector3f::Zero();    // S = Σ a_i N_i (m²)
-  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  // Σ a_i c_i / A, c_i the triangle centroids (m)
-  std::uint32_t count = 0;                             // triangles in the leaf
+  std::uint64_t key;         // Morton code at the finest depth
+  float area;                // A = Σ a_i (m²)
+  Eigen::Vector3f sum_an;    // S = Σ a_i N_i (m²)
+  Eigen::Vector3f centroid;  // Σ a_i c_i / A, c_i the triangle centroids (m)
+  std::uint32_t count;       // triangles in the leaf
 };
+
+namespace detail {
+// Default-initialises: growing a vector of plain data does not write (and fault in) it.
+template <typename T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  using std::allocator<T>::allocator;
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+}  // namespace detail
+
+using OctreeLeaves = std::vector<OctreeLeaf, detail::DefaultInitAllocator<OctreeLeaf>>;
 
 struct NodeStats {
   double area = 0.0;
@@ -36,7 +63,7 @@ class LinearOctree {
   // in any order; the triangles are never sorted (see leaf_sums.cpp).
   static LinearOctree build(const ingest::MeshView& mesh, double leaf_size);
 
-  const std::vector<OctreeLeaf>& leaves() const { return leaves_; }
+  const OctreeLeaves& leaves() const { return leaves_; }
   // Finest-depth key of the leaf holding triangle t (its centroid's cell).
   std::uint64_t triangle_key(const ingest::MeshView& mesh, std::size_t t) const;
   int depth() const { return depth_; }
@@ -86,7 +113,7 @@ class LinearOctree {
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   double leaf_size_ = 0.0;
   int depth_ = 0;
-  std::vector<OctreeLeaf> leaves_;
+  OctreeLeaves leaves_;
   std::size_t build_bytes_ = 0;  // peak memory of the build, beyond the leaves
 };
 
