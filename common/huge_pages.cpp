@@ -1,5 +1,6 @@
 #include "dentmark/common/huge_pages.h"
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -15,6 +16,12 @@ namespace {
 constexpr const char* kTunable = "glibc.malloc.hugetlb=1";
 
 }  // namespace
+
+void keep_freed_memory_for_reuse() {
+  mallopt(M_ARENA_MAX, 1);
+  mallopt(M_MMAP_MAX, 0);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+}
 
 bool huge_pages_requested() {
   const char* tunables = std::getenv("GLIBC_TUNABLES");

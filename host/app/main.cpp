@@ -1,6 +1,4 @@
 // dentmark: the host CLI. Thin: parse arguments, call a library, report.
-#include <malloc.h>
-
 #include <exception>
 
 #include "commands.h"
@@ -17,11 +15,7 @@ int& exit_code() {
 
 int main(int argc, char** argv) {
   dentmark::reexec_with_huge_pages();
-  // Big scans are processed in stages that each allocate and free tens of MB. Keep freed
-  // memory in the heap for the next stage: fresh pages cost a fault and zeroing each
-  // (about 1.5 GB/s on a VM, ten times slower than reusing memory).
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  dentmark::keep_freed_memory_for_reuse();
   CLI::App app{
       "dentmark: finds dents and bumps on car body panel scans and sends them to the marking station",
       "dentmark"};

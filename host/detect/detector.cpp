@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <opencv2/core.hpp>
@@ -16,6 +17,7 @@
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
+#include "dentmark/host/detect/reference_surface.h"
 #include "holes.h"
 #include "median.h"
 
@@ -81,7 +83,9 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   st.leaf_size = h;
 
   // --- Linear octree, eq. (1)-(3) ---
-  const LinearOctree tree = LinearOctree::build(mesh, h);
+  // Released once the map is built: later stages reuse its memory.
+  auto tree_ptr = std::make_unique<const LinearOctree>(LinearOctree::build(mesh, h));
+  const LinearOctree& tree = *tree_ptr;
   st.depth = tree.depth();
   st.leaves = tree.leaves().size();
   for (const auto& l : tree.leaves()) st.surface_area += l.area;
@@ -106,8 +110,21 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
 
   // --- Height map and robust reference surface ---
   out.map = build_height_map(tree, h, cfg.hole_depth);
+  lap("map");
   const HeightMap& map = out.map;
   const int rows = map.rows, cols = map.cols;
+  // The feature groups' pixels (eq. 3-4 candidates); the leaves are not needed after this.
+  std::vector<long> group_pixels;
+  for (const auto& g : groups)
+    for (auto l : g) {
+      const Eigen::Vector3d q = map.to_map(tree.leaves()[l].centroid.cast<double>());
+      if (const long k = map.pixel_of(q.x(), q.y()); k >= 0) group_pixels.push_back(k);
+    }
+  // Working memory: the octree's leaves and the records of its build; the map's arrays and
+  // deviation images; the map's build (per leaf: pixel; per pixel: front and normal sum).
+  st.working_bytes =
+      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 16;
+  tree_ptr.reset();
   cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
   cv::Mat occupied = weight > 0.0f;
   // Outside: empty regions larger than a (10 mm)² dropout or touching the map border.
@@ -142,12 +159,14 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     if (std::find(scales.begin(), scales.end(), k) == scales.end()) scales.push_back(k);
   }
   std::vector<float> ref_weights(map.weight);
-  std::vector<float> ref;
+  ReferenceSurface reference(map, cfg.reference_window);
+  const std::vector<float>* fitted = nullptr;
   cv::Mat dev(rows, cols, CV_32F), cand;
   std::vector<double> scale_sigma(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
-    ref = fit_reference(map, ref_weights, cfg.reference_window);
+    fitted = &reference.fit(ref_weights);  // after the first: only where candidates changed
+    const std::vector<float>& ref = *fitted;
     float* d = dev.ptr<float>();
 #pragma omp parallel for schedule(static)
     for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
@@ -189,6 +208,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     }
   }
   lap("reference");
+  const std::vector<float>& ref = *fitted;
 
   // --- Holes: enclosed regions seen through; their rim is theirs, not a dent's ---
   const std::vector<HoleRegion> holes = find_holes(map, dev, ref, cfg.hole_depth, cfg.max_hole_diameter);
@@ -206,13 +226,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
 
   // --- Candidates: deviation test or eq. (3)-(4) feature groups ---
   cv::Mat octree_px(rows, cols, CV_8U, cv::Scalar(0));
-  for (const auto& g : groups)
-    for (auto l : g) {
-      const auto& leaf = tree.leaves()[l];
-      const Eigen::Vector3d q = map.to_map(leaf.centroid.cast<double>());
-      const long k = map.pixel_of(q.x(), q.y());
-      if (k >= 0) octree_px.data[k] = 255;
-    }
+  for (const long k : group_pixels) octree_px.data[k] = 255;
   octree_px &= ~hole_zone;
   cv::Mat any = cand | octree_px;
   cv::Mat labels;
@@ -667,10 +681,6 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;
-  // Working memory: the octree's leaves and the records of its build; the map's arrays and
-  // deviation images; the map's build (per leaf: pixel; per pixel: front and normal sum).
-  st.working_bytes =
-      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 16;
   lap("classify");
   return out;
 }

@@ -4,7 +4,6 @@
 //   BM_ReadDetectWrite:     binary PLY read + detection + JSON write, the whole job.
 //   BM_QualityOverSeeds:    recall / false alarms / errors over many seeds (counters).
 #include <benchmark/benchmark.h>
-#include <malloc.h>
 
 #include <filesystem>
 #include <memory>
@@ -27,8 +26,7 @@ using namespace dentmark;
 // here the next iteration), so the figures are the algorithm's, not the VM's page faults.
 const bool heap_kept = [] {
   reexec_with_huge_pages();  // as the command does: huge pages for the heap
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  keep_freed_memory_for_reuse();
   return true;
 }();
 

@@ -12,6 +12,13 @@ namespace dentmark {
 // /proc): the program then runs on small pages, only slower.
 void reexec_with_huge_pages();
 
+// Big scans are processed in stages that each allocate and free tens of MB. Keeps what
+// one stage frees for the next (a fresh page costs a fault and zeroing; reused memory
+// costs nothing): one heap for every thread (a worker's freed records go to the main
+// thread's next stage), big blocks from the heap instead of their own mappings, and no
+// trimming. Call in main before any thread starts.
+void keep_freed_memory_for_reuse();
+
 // Whether this process runs with glibc's huge-page tunable set (for reports).
 bool huge_pages_requested();
 

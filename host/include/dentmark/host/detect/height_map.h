@@ -41,9 +41,4 @@ struct HeightMap {
 // behind the column's front go to 'behind' instead of being averaged into the pixel.
 HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth);
 
-// Reference surface: at each pixel, the weighted least-squares quadratic over a square
-// window (moving least squares), evaluated from fits at tile centres and blended
-// bilinearly. weights: per pixel (0 excludes it). NaN where no fit is possible.
-std::vector<float> fit_reference(const HeightMap& map, const std::vector<float>& weights, double window);
-
 }  // namespace dentmark::detect

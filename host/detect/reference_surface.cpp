@@ -1,0 +1,227 @@
+#include "dentmark/host/detect/reference_surface.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace dentmark::detect {
+namespace {
+
+double binom(int n, int k) {
+  static const double t[5][5] = {
+      {1, 0, 0, 0, 0}, {1, 1, 0, 0, 0}, {1, 2, 1, 0, 0}, {1, 3, 3, 1, 0}, {1, 4, 6, 4, 1}};
+  return t[n][k];
+}
+
+// Tiles within `radius` (Chebyshev) of a marked one.
+std::vector<std::uint8_t> grow(const std::vector<std::uint8_t>& marked, int nx, int ny, int radius) {
+  std::vector<std::uint8_t> rows(marked.size(), 0), out(marked.size(), 0);
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x)
+      if (marked[static_cast<std::size_t>(y) * nx + x])
+        for (int k = std::max(0, x - radius); k <= std::min(nx - 1, x + radius); ++k)
+          rows[static_cast<std::size_t>(y) * nx + k] = 1;
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x)
+      if (rows[static_cast<std::size_t>(y) * nx + x])
+        for (int k = std::max(0, y - radius); k <= std::min(ny - 1, y + radius); ++k)
+          out[static_cast<std::size_t>(k) * nx + x] = 1;
+  return out;
+}
+
+std::vector<int> marked_list(const std::vector<std::uint8_t>& marked) {
+  std::vector<int> list;
+  for (std::size_t i = 0; i < marked.size(); ++i)
+    if (marked[i]) list.push_back(static_cast<int>(i));
+  return list;
+}
+
+}  // namespace
+
+ReferenceSurface::ReferenceSurface(const HeightMap& map, double window) : map_(map) {
+  const double px = map.pixel;
+  tile_ = std::max(4, static_cast<int>(std::lround(window / (8.0 * px))));
+  radius_ = std::max(1, static_cast<int>(std::lround(window / (2.0 * tile_ * px))));
+  tiles_x_ = (map.cols + tile_ - 1) / tile_;
+  tiles_y_ = (map.rows + tile_ - 1) / tile_;
+  // Global coordinates scaled to about [-1, 1] for the moments.
+  gu_ = map.u0 + 0.5 * map.cols * px;
+  gv_ = map.v0 + 0.5 * map.rows * px;
+  gs_ = 2.0 / (std::max(map.cols, map.rows) * px);
+  local_scale_ = 1.0 / (radius_ * tile_ * px);
+}
+
+ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
+                                                         const std::vector<float>& weights) const {
+  Moments mo;
+  for (int r = ty * tile_; r < std::min(map_.rows, (ty + 1) * tile_); ++r)
+    for (int c = tx * tile_; c < std::min(map_.cols, (tx + 1) * tile_); ++c) {
+      const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+      const double om = weights[k];
+      if (!(om > 0.0)) continue;
+      const double x = (map_.u[k] - gu_) * gs_, y = (map_.v[k] - gv_) * gs_, z = map_.w[k];
+      double xa = om;
+      for (int a = 0; a <= 4; ++a) {
+        double xy = xa;
+        for (int b = 0; a + b <= 4; ++b) {
+          mo.m[a * 5 + b] += xy;
+          if (a + b <= 2) mo.h[a * 3 + b] += xy * z;
+          xy *= y;
+        }
+        xa *= x;
+      }
+    }
+  return mo;
+}
+
+void ReferenceSurface::integrate() {
+  const int ic = tiles_x_ + 1;
+  integral_.assign(static_cast<std::size_t>(ic) * (tiles_y_ + 1), Moments{});
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      Moments& o = integral_[static_cast<std::size_t>(ty + 1) * ic + tx + 1];
+      const Moments &a = integral_[static_cast<std::size_t>(ty) * ic + tx + 1],
+                    &b = integral_[static_cast<std::size_t>(ty + 1) * ic + tx],
+                    &d = integral_[static_cast<std::size_t>(ty) * ic + tx],
+                    &t = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+      for (int i = 0; i < 25; ++i) o.m[i] = a.m[i] + b.m[i] - d.m[i] + t.m[i];
+      for (int i = 0; i < 9; ++i) o.h[i] = a.h[i] + b.h[i] - d.h[i] + t.h[i];
+    }
+}
+
+ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
+  const double px = map_.pixel;
+  const int ic = tiles_x_ + 1;
+  const int x0 = std::max(0, tx - radius_), x1 = std::min(tiles_x_, tx + radius_ + 1),
+            y0 = std::max(0, ty - radius_), y1 = std::min(tiles_y_, ty + radius_ + 1);
+  Moments win;
+  const Moments &A = integral_[static_cast<std::size_t>(y1) * ic + x1],
+                &B = integral_[static_cast<std::size_t>(y0) * ic + x1],
+                &C = integral_[static_cast<std::size_t>(y1) * ic + x0],
+                &D = integral_[static_cast<std::size_t>(y0) * ic + x0];
+  for (int i = 0; i < 25; ++i) win.m[i] = A.m[i] - B.m[i] - C.m[i] + D.m[i];
+  for (int i = 0; i < 9; ++i) win.h[i] = A.h[i] - B.h[i] - C.h[i] + D.h[i];
+  Quadratic q;
+  q.cu = map_.u0 + (tx * tile_ + 0.5 * tile_) * px;
+  q.cv = map_.v0 + (ty * tile_ + 0.5 * tile_) * px;
+  if (!(win.m[0] > 0.0)) return q;
+  // Moments about the tile centre, Σ ω (x - dx)^a (y - dy)^b, rescaled x -> x * k.
+  const double dx = (q.cu - gu_) * gs_, dy = (q.cv - gv_) * gs_, k = local_scale_ / gs_;
+  const double px_[5] = {1, -dx, dx * dx, -dx * dx * dx, dx * dx * dx * dx};
+  const double py_[5] = {1, -dy, dy * dy, -dy * dy * dy, dy * dy * dy * dy};
+  const double ka[5] = {1, k, k * k, k * k * k, k * k * k * k};
+  Moments cm;
+  for (int a = 0; a <= 4; ++a)
+    for (int b = 0; a + b <= 4; ++b) {
+      double s = 0.0, hs = 0.0;
+      for (int i = 0; i <= a; ++i)
+        for (int j = 0; j <= b; ++j) {
+          const double f = binom(a, i) * binom(b, j) * px_[a - i] * py_[b - j];
+          s += f * win.m[i * 5 + j];
+          if (a + b <= 2) hs += f * win.h[i * 3 + j];
+        }
+      cm.m[a * 5 + b] = s * ka[a + b];
+      if (a + b <= 2) cm.h[a * 3 + b] = hs * ka[a + b];
+    }
+  // Basis 1, x, y, x², xy, y².
+  static constexpr int pa[6] = {0, 1, 0, 2, 1, 0}, pb[6] = {0, 0, 1, 0, 1, 2};
+  Eigen::Matrix<double, 6, 6> N;
+  Eigen::Matrix<double, 6, 1> rhs;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) N(i, j) = cm.m[(pa[i] + pa[j]) * 5 + pb[i] + pb[j]];
+    rhs(i) = cm.h[pa[i] * 3 + pb[i]];
+  }
+  // Enough spread for a quadratic? Otherwise a plane, otherwise nothing.
+  const double w0 = N(0, 0);
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(N);
+  if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 1e-6 * w0) {
+    q.c = ldlt.solve(rhs);
+    q.ok = q.c.allFinite();
+  } else {
+    const Eigen::Matrix3d N3 = N.topLeftCorner<3, 3>();
+    const Eigen::LDLT<Eigen::Matrix3d> l3(N3);
+    if (l3.info() == Eigen::Success && l3.vectorD().minCoeff() > 1e-6 * w0) {
+      q.c.setZero();
+      q.c.head<3>() = l3.solve(rhs.head<3>());
+      q.ok = q.c.allFinite();
+    }
+  }
+  return q;
+}
+
+void ReferenceSurface::blend(int tx, int ty) {
+  const int T = tile_;
+  for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r) {
+    const double fy = (r + 0.5) / T - 0.5;
+    const int iy = static_cast<int>(std::floor(fy));
+    const double ay = fy - iy;
+    for (int c = tx * T; c < std::min(map_.cols, (tx + 1) * T); ++c) {
+      const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+      ref_[k] = std::numeric_limits<float>::quiet_NaN();
+      if (!(map_.weight[k] > 0.0f)) continue;
+      const double fx = (c + 0.5) / T - 0.5;
+      const int ix = static_cast<int>(std::floor(fx));
+      const double ax = fx - ix;
+      double sum = 0.0, wsum = 0.0;
+      for (int dy = 0; dy <= 1; ++dy)
+        for (int dx = 0; dx <= 1; ++dx) {
+          const int qx = std::clamp(ix + dx, 0, tiles_x_ - 1), qy = std::clamp(iy + dy, 0, tiles_y_ - 1);
+          const Quadratic& q = fits_[static_cast<std::size_t>(qy) * tiles_x_ + qx];
+          if (!q.ok) continue;
+          const double wgt = (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) + 1e-9;
+          const double x = (map_.u[k] - q.cu) * local_scale_, y = (map_.v[k] - q.cv) * local_scale_;
+          const double val =
+              q.c(0) + q.c(1) * x + q.c(2) * y + q.c(3) * x * x + q.c(4) * x * y + q.c(5) * y * y;
+          sum += wgt * val, wsum += wgt;
+        }
+      if (wsum > 0) ref_[k] = static_cast<float>(sum / wsum);
+    }
+  }
+}
+
+const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weights) {
+  const std::size_t tiles = static_cast<std::size_t>(tiles_x_) * tiles_y_;
+  // The tiles whose weights changed since the last fit (all, the first time).
+  std::vector<std::uint8_t> changed(tiles, 1);
+  if (!weights_.empty()) {
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int ty = 0; ty < tiles_y_; ++ty)
+      for (int tx = 0; tx < tiles_x_; ++tx) {
+        bool differs = false;
+        for (int r = ty * tile_; r < std::min(map_.rows, (ty + 1) * tile_) && !differs; ++r) {
+          const std::size_t row = static_cast<std::size_t>(r) * map_.cols;
+          for (int c = tx * tile_; c < std::min(map_.cols, (tx + 1) * tile_); ++c)
+            differs = differs || weights[row + c] != weights_[row + c];
+        }
+        changed[static_cast<std::size_t>(ty) * tiles_x_ + tx] = differs;
+      }
+    if (std::none_of(changed.begin(), changed.end(), [](std::uint8_t b) { return b != 0; })) return ref_;
+  } else {
+    tiles_.resize(tiles);
+    fits_.resize(tiles);
+    ref_.assign(map_.size(), std::numeric_limits<float>::quiet_NaN());
+  }
+  weights_ = weights;
+
+  const std::vector<int> moments = marked_list(changed);
+#pragma omp parallel for schedule(dynamic, 16)
+  for (std::size_t i = 0; i < moments.size(); ++i)
+    tiles_[static_cast<std::size_t>(moments[i])] =
+        tile_moments(moments[i] % tiles_x_, moments[i] / tiles_x_, weights);
+  integrate();
+  // A fit changes when its window holds a changed tile; a pixel when one of its four
+  // nearest fits does (they are in its own tile and the eight around it).
+  const std::vector<std::uint8_t> refit = grow(changed, tiles_x_, tiles_y_, radius_);
+  const std::vector<int> fits = marked_list(refit);
+#pragma omp parallel for schedule(dynamic, 16)
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    fits_[static_cast<std::size_t>(fits[i])] = fit_at(fits[i] % tiles_x_, fits[i] / tiles_x_);
+  const std::vector<int> blends = marked_list(grow(refit, tiles_x_, tiles_y_, 1));
+#pragma omp parallel for schedule(dynamic, 16)
+  for (std::size_t i = 0; i < blends.size(); ++i) blend(blends[i] % tiles_x_, blends[i] / tiles_x_);
+  return ref_;
+}
+
+}  // namespace dentmark::detect

@@ -1,0 +1,91 @@
+// Reference surface: reproduces what it can represent, is not pulled by what is left out,
+// and a refit after some weights change equals a fit from scratch to the last bit.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <functional>
+
+#include "dentmark/host/detect/reference_surface.h"
+
+namespace dentmark::detect {
+namespace {
+
+// A 0.2 x 0.15 m height map at 1 mm pixels with w = f(u, v), every pixel weighted 1.
+HeightMap map_of(const std::function<double(double, double)>& f) {
+  HeightMap map;
+  map.pixel = 0.001;
+  map.cols = 200, map.rows = 150;
+  map.u0 = -0.1, map.v0 = -0.075;
+  const std::size_t n = map.size();
+  map.weight.assign(n, 1.0f), map.cos_tilt.assign(n, 1.0f);
+  map.u.resize(n), map.v.resize(n), map.w.resize(n);
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c) {
+      const std::size_t k = static_cast<std::size_t>(r) * map.cols + c;
+      map.u[k] = static_cast<float>(map.u0 + (c + 0.3) * map.pixel);  // off-centre samples
+      map.v[k] = static_cast<float>(map.v0 + (r + 0.6) * map.pixel);
+      map.w[k] = static_cast<float>(f(map.u[k], map.v[k]));
+    }
+  return map;
+}
+
+double bump(double u, double v) {  // 0.2 mm high, 10 mm across, at (0.02, 0.01)
+  const double d2 = (u - 0.02) * (u - 0.02) + (v - 0.01) * (v - 0.01);
+  return 0.0002 * std::exp(-d2 / (2 * 0.0025 * 0.0025));
+}
+
+double panel(double u, double v) {
+  return 0.05 + 0.3 * u - 0.2 * v + 0.8 * u * u - 0.5 * u * v + 0.4 * v * v;
+}
+
+TEST(ReferenceSurface, ReproducesAQuadraticPanel) {
+  const HeightMap map = map_of(panel);
+  ReferenceSurface surface(map, 0.064);
+  const std::vector<float>& ref = surface.fit(map.weight);
+  for (std::size_t k = 0; k < map.size(); ++k) ASSERT_NEAR(ref[k], map.w[k], 2e-7) << k;
+}
+
+TEST(ReferenceSurface, PixelsLeftOutDoNotPullIt) {
+  const HeightMap map = map_of([](double u, double v) { return panel(u, v) + bump(u, v); });
+  ReferenceSurface surface(map, 0.064);
+  const std::size_t apex = static_cast<std::size_t>(85) * map.cols + 120;  // (0.02, 0.01)
+  const float pulled = surface.fit(map.weight)[apex];
+  EXPECT_GT(pulled - panel(map.u[apex], map.v[apex]), 3e-6);  // the bump pulls a fit over it (5 µm)
+  std::vector<float> weights = map.weight;
+  for (std::size_t k = 0; k < map.size(); ++k)
+    if (bump(map.u[k], map.v[k]) > 1e-7) weights[k] = 0.0f;
+  const float clean = surface.fit(weights)[apex];
+  EXPECT_NEAR(clean, panel(map.u[apex], map.v[apex]), 3e-7);
+}
+
+TEST(ReferenceSurface, ARefitEqualsAFitFromScratch) {
+  const HeightMap map = map_of([](double u, double v) {
+    return panel(u, v) + bump(u, v) + 0.00002 * std::sin(300 * u) * std::cos(200 * v);
+  });
+  std::vector<float> weights = map.weight;
+  for (std::size_t k = 0; k < map.size(); k += 7) weights[k] = 0.5f;  // uneven, some empty
+  for (std::size_t k = 0; k < map.size(); k += 13) weights[k] = 0.0f;
+  ReferenceSurface incremental(map, 0.064);
+  incremental.fit(weights);
+  // Leave out two patches, then one of them again.
+  for (int step = 0; step < 2; ++step) {
+    for (int r = 70; r < 100; ++r)
+      for (int c = step ? 20 : 110; c < (step ? 35 : 130); ++c)
+        weights[static_cast<std::size_t>(r) * map.cols + c] = 0;
+    if (step) weights[static_cast<std::size_t>(80) * map.cols + 120] = 1.0f;
+    const std::vector<float>& refit = incremental.fit(weights);
+    ReferenceSurface scratch(map, 0.064);
+    const std::vector<float>& fresh = scratch.fit(weights);
+    ASSERT_EQ(refit.size(), fresh.size());
+    EXPECT_EQ(std::memcmp(refit.data(), fresh.data(), refit.size() * sizeof(float)), 0) << "step " << step;
+  }
+  // And the refit did change something.
+  ReferenceSurface first(map, 0.064);
+  std::vector<float> before = map.weight;
+  EXPECT_NE(
+      std::memcmp(first.fit(before).data(), incremental.fit(weights).data(), map.size() * sizeof(float)), 0);
+}
+
+}  // namespace
+}  // namespace dentmark::detect
