@@ -162,42 +162,54 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   ReferenceSurface reference(map, cfg.reference_window);
   const std::vector<float>* fitted = nullptr;
   cv::Mat dev(rows, cols, CV_32F), cand;
+  // Working images, reused by every iteration.
+  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, num, den, valid(rows, cols, CV_8U);
   std::vector<double> scale_sigma(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
     fitted = &reference.fit(ref_weights);  // after the first: only where candidates changed
     const std::vector<float>& ref = *fitted;
-    float* d = dev.ptr<float>();
+    // Deviation from the reference along the normal; where it is valid, also the
+    // deviation and weight that the box filters average (0 elsewhere).
+    float *d = dev.ptr<float>(), *dzp = dz.ptr<float>(), *wvp = wv.ptr<float>();
+    std::uint8_t* vp = valid.ptr<std::uint8_t>();
 #pragma omp parallel for schedule(static)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
-      d[k] = (map.weight[k] > 0.0f && std::isfinite(ref[k])) ? (map.w[k] - ref[k]) * map.cos_tilt[k]
-                                                             : std::numeric_limits<float>::quiet_NaN();
-    cv::Mat valid = (dev == dev) & occupied;  // not NaN
-    cv::Mat dz = dev.clone();
-    dz.setTo(0.0f, ~valid);
-    cv::Mat wv;
-    weight.copyTo(wv);
-    wv.setTo(0.0f, ~valid);
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
+      const bool ok = map.weight[k] > 0.0f && std::isfinite(ref[k]);
+      d[k] = ok ? (map.w[k] - ref[k]) * map.cos_tilt[k] : std::numeric_limits<float>::quiet_NaN();
+      dzp[k] = ok ? d[k] : 0.0f;
+      wvp[k] = ok ? map.weight[k] : 0.0f;
+      vp[k] = ok ? 255 : 0;
+    }
     // Median first: a lone outlier spike cannot survive it; a defect of a few pixels can.
-    cv::Mat dm;
     if (scales.front() >= 3)
       cv::medianBlur(dz, dm, 3);
     else
-      dm = dz;
-    cand = cv::Mat::zeros(rows, cols, CV_8U);
-    const cv::Mat wdm = wv.mul(dm);
+      dz.copyTo(dm);
+    float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
+    const float* dmp = dm.ptr<float>();
+#pragma omp parallel for schedule(static)
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) wdm[k] = wvp[k] * dmp[k];
+    cand.create(rows, cols, CV_8U);
+    cand.setTo(0);
+    std::uint8_t* cp = cand.ptr<std::uint8_t>();
     for (std::size_t s = 0; s < scales.size(); ++s) {
       const int k = scales[s];
-      cv::Mat num, den;
-      cv::boxFilter(wdm, num, CV_32F, {k, k}, {-1, -1}, false, cv::BORDER_CONSTANT);
+      cv::boxFilter(dz, num, CV_32F, {k, k}, {-1, -1}, false, cv::BORDER_CONSTANT);
       cv::boxFilter(wv, den, CV_32F, {k, k}, {-1, -1}, false, cv::BORDER_CONSTANT);
-      cv::Mat ok = den >= 0.3f * static_cast<float>(k * k);
-      cv::Mat rs;
-      cv::divide(num, cv::max(den, 1e-6f), rs);
-      scale_sigma[s] = robust_sigma(rs, ok & interior);
+      // The windowed mean where the window is at least 30 % full, NaN elsewhere (in num).
+      float* rs = num.ptr<float>();
+      const float* dp = den.ptr<float>();
+      const float full = 0.3f * static_cast<float>(k * k);
+#pragma omp parallel for schedule(static)
+      for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
+        rs[q] = dp[q] >= full ? rs[q] / std::max(dp[q], 1e-6f) : std::numeric_limits<float>::quiet_NaN();
+      scale_sigma[s] = robust_sigma(num, interior);
       const float thr =
           static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));
-      cand |= (cv::abs(rs) > thr) & ok & valid;
+#pragma omp parallel for schedule(static)
+      for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
+        cp[q] |= (vp[q] && std::abs(rs[q]) > thr) ? 255 : 0;
     }
     st.deviation_noise = robust_sigma(dev, interior);
     if (it + 1 < iterations) {

@@ -490,13 +490,21 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
   const char* const faces = bytes.data() + face_block;
   const char* const vertices = bytes.data() + vertex_block + xyz;
   const auto nf = static_cast<std::int64_t>(face_count), nv = static_cast<std::int64_t>(vertex_count);
-  std::int64_t bad = 0;
-#pragma omp parallel for schedule(static) reduction(+ : bad)
+  // As triangle_record for every face, as one branch-free reduction: the largest index
+  // (as unsigned, a negative int32 is >= 2^31) and any count byte but 3.
+  const std::uint64_t limit =
+      signed_index ? std::min<std::uint64_t>(vertex_count, 0x80000000u) : vertex_count;
+  std::uint32_t largest = 0, not_three = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest) reduction(| : not_three)
   for (std::int64_t r = 0; r < nf; ++r) {
+    const char* q = faces + 13 * r;
     std::uint32_t v[3];
-    bad += !triangle_record(faces + 13 * r, vertex_count, signed_index, v);
+    std::memcpy(v, q + 1, sizeof v);
+    largest = std::max(largest, std::max(v[0], std::max(v[1], v[2])));
+    not_three |= static_cast<std::uint8_t>(q[0]) ^ 3u;
   }
-  if (bad != 0) return std::nullopt;
+  if (not_three != 0 || largest >= limit) return std::nullopt;
+  std::int64_t bad = 0;
 #pragma omp parallel for schedule(static) reduction(+ : bad)
   for (std::int64_t i = 0; i < nv; ++i) {
     float c[3];
