@@ -1,55 +1,73 @@
 #include "dentmark/common/huge_pages.h"
 
 #include <malloc.h>
-#include <unistd.h>
+#include <sys/mman.h>
 
+#include <climits>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <string>
-#include <vector>
 
 namespace dentmark {
 namespace {
 
-constexpr const char* kTunable = "glibc.malloc.hugetlb=1";
+constexpr std::size_t kReserve = std::size_t{1} << 30;
+constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+bool requested = false;
+
+bool sanitized() {
+#if defined(__SANITIZE_ADDRESS__)
+  return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+  return true;
+#else
+  return false;
+#endif
+#else
+  return false;
+#endif
+}
 
 }  // namespace
 
-void keep_freed_memory_for_reuse() {
+bool prepare_heap_for_big_jobs() {
+  if (sanitized()) return false;
   mallopt(M_ARENA_MAX, 1);
   mallopt(M_MMAP_MAX, 0);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, INT_MAX);
+  const char* off = std::getenv("DENTMARK_HUGEPAGES");
+  if (off && std::strcmp(off, "0") == 0) return false;
+  // Grow the heap by kReserve of untouched address space and give it back to the
+  // allocator: it stays the heap's top (no trimming), and every later block is cut
+  // from it, inside the range marked for huge pages.
+  void* block = std::malloc(kReserve);
+  if (!block) return false;
+  const auto begin = (reinterpret_cast<std::uintptr_t>(block) + kHugePage - 1) & ~(kHugePage - 1);
+  const auto end = (reinterpret_cast<std::uintptr_t>(block) + kReserve) & ~(kHugePage - 1);
+  requested = end > begin && ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE) == 0;
+  std::free(block);
+  return requested;
 }
 
 bool huge_pages_requested() {
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  return tunables && std::strstr(tunables, kTunable);
+  return requested;
 }
 
-void reexec_with_huge_pages() {
-  const char* off = std::getenv("DENTMARK_HUGEPAGES");
-  if (off && std::strcmp(off, "0") == 0) return;
-  const char* current = std::getenv("GLIBC_TUNABLES");
-  if (current && std::strstr(current, "glibc.malloc.hugetlb")) return;  // set (by us or the user)
-  // The arguments as the kernel holds them (works before main has its argv, too).
-  std::ifstream in("/proc/self/cmdline", std::ios::binary);
-  const std::string cmdline((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (cmdline.empty()) return;
-  std::vector<char*> argv;
-  for (std::size_t at = 0; at < cmdline.size(); at = cmdline.find('\0', at) + 1)
-    argv.push_back(const_cast<char*>(cmdline.c_str() + at));
-  argv.push_back(nullptr);
-  const std::string previous = current ? current : "";
-  const std::string tunables = previous.empty() ? kTunable : previous + ":" + kTunable;
-  if (::setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
-  ::execv("/proc/self/exe", argv.data());
-  // Exec failed: carry on as we are.
-  if (current)
-    ::setenv("GLIBC_TUNABLES", previous.c_str(), 1);
-  else
-    ::unsetenv("GLIBC_TUNABLES");
+std::size_t huge_page_bytes_in_use() {
+  std::ifstream in("/proc/self/smaps_rollup");
+  std::string key;
+  std::size_t kb = 0;
+  while (in >> key) {
+    if (key == "AnonHugePages:") {
+      in >> kb;
+      return kb * 1024;
+    }
+    in.ignore(SIZE_MAX, '\n');
+  }
+  return 0;
 }
 
 }  // namespace dentmark

@@ -112,8 +112,9 @@ int run_detect(const DetectArgs& a) {
         static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
     struct rusage usage {};
     ::getrusage(RUSAGE_SELF, &usage);
-    std::printf("memory: %s, peak resident %.0f MB (the mapped scan included)\n",
+    std::printf("memory: %s (%.0f MB in use), peak resident %.0f MB (the mapped scan included)\n",
                 huge_pages_requested() ? "huge pages requested" : "small pages",
+                static_cast<double>(huge_page_bytes_in_use()) / (1 << 20),
                 static_cast<double>(usage.ru_maxrss) / 1024.0);
     for (const auto& [stage, sec] : det.timing) std::printf("timing %-10s %8.3f s\n", stage.c_str(), sec);
     std::printf("timing %-10s %8.3f s\ntiming %-10s %8.3f s\n", "write",

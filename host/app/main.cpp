@@ -14,8 +14,7 @@ int& exit_code() {
 }  // namespace dentmark::cli
 
 int main(int argc, char** argv) {
-  dentmark::reexec_with_huge_pages();
-  dentmark::keep_freed_memory_for_reuse();
+  dentmark::prepare_heap_for_big_jobs();
   CLI::App app{
       "dentmark: finds dents and bumps on car body panel scans and sends them to the marking station",
       "dentmark"};

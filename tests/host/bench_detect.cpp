@@ -25,8 +25,7 @@ using namespace dentmark;
 // As the 'dentmark' command does: freed memory stays in the heap for the next stage (and
 // here the next iteration), so the figures are the algorithm's, not the VM's page faults.
 const bool heap_kept = [] {
-  reexec_with_huge_pages();  // as the command does: huge pages for the heap
-  keep_freed_memory_for_reuse();
+  prepare_heap_for_big_jobs();  // as the command does
   return true;
 }();
 
