@@ -6,6 +6,17 @@
 #include <limits>
 #include <stdexcept>
 
+#ifdef _OPENMP
+#include <omp.h>
+#else
+inline int omp_get_num_threads() {
+  return 1;
+}
+inline int omp_get_thread_num() {
+  return 0;
+}
+#endif
+
 namespace dentmark::detect {
 
 long HeightMap::pixel_of(double pu, double pv) const {
@@ -18,19 +29,38 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   const auto& leaves = tree.leaves();
   HeightMap map;
   map.pixel = pixel;
-  // Plane through the area-weighted leaf centroids (weighted scatter of leaf means).
-  double A = 0.0;
-  Eigen::Vector3d P = Eigen::Vector3d::Zero(), S = Eigen::Vector3d::Zero();
-  for (const auto& l : leaves)
-    A += l.area, P += l.area * l.centroid.cast<double>(), S += l.sum_an.cast<double>();
-  if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
-  const Eigen::Vector3d c = P / A;
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const auto& l : leaves) {
-    if (!(l.area > 0.0)) continue;
-    const Eigen::Vector3d d = l.centroid.cast<double>() - c;
-    scatter += l.area * d * d.transpose();
+  // Plane through the area-weighted leaf centroids (weighted scatter of leaf means). One
+  // pass of sums about a point near the data, in fixed chunks summed in order: the same
+  // plane to the last bit whatever the number of threads.
+  struct Sums {
+    double area = 0.0;
+    Eigen::Vector3d p = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d pp = Eigen::Matrix3d::Zero();
+  };
+  constexpr std::int64_t kChunks = 64;
+  Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+  if (!leaves.empty()) x0 = leaves[leaves.size() / 2].centroid.cast<double>();
+  std::vector<Sums> chunk(kChunks);
+  const auto leaf_count = static_cast<std::int64_t>(leaves.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t ch = 0; ch < kChunks; ++ch) {
+    Sums& cs = chunk[static_cast<std::size_t>(ch)];
+    for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
+      const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
+      cs.s += l.sum_an.cast<double>();
+      if (!(l.area > 0.0f)) continue;
+      const Eigen::Vector3d d = l.centroid.cast<double>() - x0;
+      cs.area += l.area, cs.p += l.area * d, cs.pp += l.area * d * d.transpose();
+    }
   }
+  Sums all;
+  for (const Sums& cs : chunk) all.area += cs.area, all.p += cs.p, all.s += cs.s, all.pp += cs.pp;
+  const double A = all.area;
+  const Eigen::Vector3d S = all.s;
+  if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
+  const Eigen::Vector3d mean = all.p / A;  // relative to x0
+  const Eigen::Vector3d c = x0 + mean;
+  const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
   Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
   // Towards the sensor at the frame origin; if the origin lies on the plane, towards
@@ -77,21 +107,36 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     if (pix[i] >= 0) front[pix[i]] = std::max(front[pix[i]], q[i].z());
   // Area-weighted sums per pixel, straight into the map's arrays (a pixel holds one or two
   // leaves: float sums lose nothing), then divided in place.
+  // Each thread owns a band of pixel rows and reads every leaf, so each pixel is summed
+  // in leaf order by one thread (the same sums as one thread's).
   map.weight.assign(n, 0.0f);
   map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
   std::vector<Eigen::Vector3f> sn(n, Eigen::Vector3f::Zero());
   const auto layer = static_cast<float>(layer_depth);
-  for (std::size_t i = 0; i < leaves.size(); ++i) {
-    const std::int32_t k = pix[i];
-    if (k < 0) continue;
-    if (q[i].z() < front[k] - layer) {
-      map.behind.push_back(q[i]);
-      continue;
+  std::vector<std::vector<Eigen::Vector3f>> behind;
+#pragma omp parallel
+  {
+#pragma omp single
+    behind.resize(static_cast<std::size_t>(omp_get_num_threads()));
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    const auto bands = static_cast<std::int64_t>(behind.size());
+    const auto first =
+        static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t) / bands);
+    const auto last =
+        static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t + 1) / bands);
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const std::int32_t k = pix[i];
+      if (k < first || k >= last) continue;  // also -1
+      if (q[i].z() < front[k] - layer) {
+        behind[t].push_back(q[i]);
+        continue;
+      }
+      const float a = leaves[i].area;
+      map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
+      sn[k] += leaves[i].sum_an;
     }
-    const float a = leaves[i].area;
-    map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
-    sn[k] += leaves[i].sum_an;
   }
+  for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());
   map.cos_tilt.assign(n, 1.0f);
   const Eigen::Vector3f wf = w.cast<float>();
   const auto inv_px2 = static_cast<float>(1.0 / (pixel * pixel));

@@ -153,30 +153,48 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
 
 void ReferenceSurface::blend(int tx, int ty) {
   const int T = tile_;
+  const float* u = map_.u.data();
+  const float* v = map_.v.data();
+  const float* weight = map_.weight.data();
   for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r) {
     const double fy = (r + 0.5) / T - 0.5;
     const int iy = static_cast<int>(std::floor(fy));
     const double ay = fy - iy;
-    for (int c = tx * T; c < std::min(map_.cols, (tx + 1) * T); ++c) {
-      const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
-      ref_[k] = std::numeric_limits<float>::quiet_NaN();
-      if (!(map_.weight[k] > 0.0f)) continue;
-      const double fx = (c + 0.5) / T - 0.5;
-      const int ix = static_cast<int>(std::floor(fx));
-      const double ax = fx - ix;
-      double sum = 0.0, wsum = 0.0;
-      for (int dy = 0; dy <= 1; ++dy)
-        for (int dx = 0; dx <= 1; ++dx) {
-          const int qx = std::clamp(ix + dx, 0, tiles_x_ - 1), qy = std::clamp(iy + dy, 0, tiles_y_ - 1);
-          const Quadratic& q = fits_[static_cast<std::size_t>(qy) * tiles_x_ + qx];
-          if (!q.ok) continue;
-          const double wgt = (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) + 1e-9;
-          const double x = (map_.u[k] - q.cu) * local_scale_, y = (map_.v[k] - q.cv) * local_scale_;
-          const double val =
-              q.c(0) + q.c(1) * x + q.c(2) * y + q.c(3) * x * x + q.c(4) * x * y + q.c(5) * y * y;
+    // The tile's columns in runs that share their four nearest fits.
+    for (int c = tx * T, end = c; c < std::min(map_.cols, (tx + 1) * T); c = end) {
+      const int ix = static_cast<int>(std::floor((c + 0.5) / T - 0.5));
+      while (end < std::min(map_.cols, (tx + 1) * T) &&
+             static_cast<int>(std::floor((end + 0.5) / T - 0.5)) == ix)
+        ++end;
+      // The four fits, (dy, dx) = (0, 0), (0, 1), (1, 0), (1, 1); one that failed has
+      // weight 0 (and zero coefficients, so it adds exactly nothing).
+      double coef[4][6], cu[4], cv[4], wy[4], use[4];
+      for (int n = 0; n < 4; ++n) {
+        const int dy = n / 2, dx = n % 2;
+        const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + dy, 0, tiles_y_ - 1)) * tiles_x_ +
+                                   std::clamp(ix + dx, 0, tiles_x_ - 1)];
+        use[n] = q.ok ? 1.0 : 0.0;
+        for (int i = 0; i < 6; ++i) coef[n][i] = q.ok ? q.c(i) : 0.0;
+        cu[n] = q.cu, cv[n] = q.cv, wy[n] = dy ? ay : 1 - ay;
+      }
+      float* out = ref_.data() + static_cast<std::size_t>(r) * map_.cols;
+      const std::size_t row = static_cast<std::size_t>(r) * map_.cols;
+#pragma omp simd
+      for (int cc = c; cc < end; ++cc) {
+        const double ax = ((cc + 0.5) / T - 0.5) - ix;
+        const double pu = u[row + cc], pv = v[row + cc];
+        double sum = 0.0, wsum = 0.0;
+        const auto add = [&](int n, double wx) {
+          const double wgt = use[n] * (wx * wy[n] + 1e-9);
+          const double x = (pu - cu[n]) * local_scale_, y = (pv - cv[n]) * local_scale_;
+          const double val = coef[n][0] + coef[n][1] * x + coef[n][2] * y + coef[n][3] * x * x +
+                             coef[n][4] * x * y + coef[n][5] * y * y;
           sum += wgt * val, wsum += wgt;
-        }
-      if (wsum > 0) ref_[k] = static_cast<float>(sum / wsum);
+        };
+        add(0, 1 - ax), add(1, ax), add(2, 1 - ax), add(3, ax);
+        const bool fitted = (weight[row + cc] > 0.0f) & (wsum > 0.0);
+        out[cc] = fitted ? static_cast<float>(sum / wsum) : std::numeric_limits<float>::quiet_NaN();
+      }
     }
   }
 }
