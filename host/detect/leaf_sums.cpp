@@ -383,7 +383,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
       return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * slice / nt) -
                                       start.begin());
     };
-    const std::size_t kb = t == 0 ? 0 : first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
+    const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
     part_begin[t] = start[kb];
     std::size_t written = 0;
     BucketSummer summer;
@@ -399,8 +399,9 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   stores.clear();
   std::size_t total = 0;
   for (std::size_t p = 0; p < part_begin.size(); ++p) {
-    std::memmove(static_cast<void*>(leaves.data() + total), leaves.data() + part_begin[p],
-                 part_size[p] * sizeof(OctreeLeaf));
+    if (part_begin[p] != total)  // the first part is in place
+      std::memmove(static_cast<void*>(leaves.data() + total), leaves.data() + part_begin[p],
+                   part_size[p] * sizeof(OctreeLeaf));
     total += part_size[p];
   }
   leaves.resize(total);

@@ -26,8 +26,6 @@ class ReferenceSurface {
   // weights: per pixel, 0 leaves the pixel out. Same size as the map.
   const std::vector<float>& fit(const std::vector<float>& weights);
 
-  int tile_size() const { return tile_; }
-
  private:
   // Moments of a tile or window: Σ ω x^a y^b (a + b <= 4) and Σ ω z x^a y^b (a + b <= 2)
   // in coordinates scaled to about [-1, 1].
