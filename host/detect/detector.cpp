@@ -211,8 +211,9 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
         cp[q] |= (vp[q] && std::abs(rs[q]) > thr) ? 255 : 0;
     }
-    st.deviation_noise = robust_sigma(dev, interior);
-    if (it + 1 < iterations) {
+    if (it + 1 == iterations) {
+      st.deviation_noise = robust_sigma(dev, interior);
+    } else {
       cv::Mat grown;
       cv::dilate(cand, grown, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
       const std::uint8_t* g = grown.ptr<std::uint8_t>();

@@ -32,15 +32,14 @@ namespace {
 // records (0.37 -> 0.51 s in sensor order, no gain in random order: its random slot
 // updates cost what the records' streaming does).
 constexpr int kBucketLevels = 4;           // 4 096 buckets: their chain tails stay in L1/L2
-constexpr int kChunkRecords = 78;          // a chunk is ~2.2 KB
+constexpr std::size_t kChunkBytes = 2200;  // a chunk of records
 constexpr int kPrefetch = 48;              // triangles ahead: hides the random vertex reads
 constexpr int kBatch = 64;                 // triangles whose geometry is computed together
 constexpr std::size_t kModeBlock = 16384;  // triangles per open/direct decision
 constexpr int kRecheckEvery = 16;          // direct blocks between two open ones
 
-// The sums of some triangles in one leaf, 28 bytes: in random order one is filed per
-// triangle, so its size is the stream's. The centroid is kept as the area-weighted mean
-// position in the leaf, in 1/65536 of its edge (15 nm at 1 mm).
+// The sums of some triangles in one leaf (an open leaf's), 28 bytes. The centroid is kept
+// as the area-weighted mean position in the leaf, in 1/65536 of its edge (15 nm at 1 mm).
 struct Record {
   std::uint32_t cell;  // key bits below the bucket
   float area;          // Σ a_i
@@ -49,6 +48,15 @@ struct Record {
   std::uint16_t count;  // triangles (an open leaf is filed before it reaches 65 535)
 };
 static_assert(sizeof(Record) == 28);
+
+// One triangle filed directly, 22 bytes: in random order one is filed per triangle, so
+// its size is the stream's (8.9 M of them). Its area is |a_i N_i|, its count 1.
+struct [[gnu::packed]] Single {
+  std::uint32_t cell;
+  float an[3];
+  std::uint16_t mean[3];
+};
+static_assert(sizeof(Single) == 22);
 
 std::uint16_t quantize(float f) {  // position in the leaf, [0, 1] -> 1/65536 steps
   return static_cast<std::uint16_t>(std::clamp(f * 65536.0f + 0.5f, 0.0f, 65535.0f));
@@ -66,54 +74,68 @@ struct OpenLeaf {
   float af[3] = {0, 0, 0};  // Σ a_i f_i, f_i the centroid's position in the leaf (edge = 1)
 };
 
+template <typename R>
 struct Chunk {
+  static constexpr std::uint32_t kCapacity = (kChunkBytes - 16) / sizeof(R);
   Chunk* next = nullptr;
   std::uint32_t size = 0;
-  Record records[kChunkRecords];
+  R records[kCapacity];
 };
 
-// One thread's chunks: bucket chains and the storage behind them.
+// One thread's chunks of one kind of record: bucket chains and the storage behind them.
+template <typename R>
 class ChunkStore {
  public:
   explicit ChunkStore(std::size_t buckets) : head_(buckets, nullptr), tail_(buckets) {}
 
-  Record& append(std::size_t bucket) {
+  R& append(std::size_t bucket) {
     Tail& t = tail_[bucket];
-    if (!t.chunk || t.chunk->size == kChunkRecords) {
-      Chunk* fresh = allocate();
+    if (!t.chunk || t.chunk->size == Chunk<R>::kCapacity) {
+      Chunk<R>* fresh = allocate();
       (t.chunk ? t.chunk->next : head_[bucket]) = fresh;
       t.chunk = fresh;
     }
     ++t.records;
     return t.chunk->records[t.chunk->size++];
   }
-  const Chunk* head(std::size_t bucket) const { return head_[bucket]; }
+  const Chunk<R>* head(std::size_t bucket) const { return head_[bucket]; }
   std::uint64_t records(std::size_t bucket) const { return tail_[bucket].records; }
+  std::uint64_t records() const {
+    std::uint64_t n = 0;
+    for (const Tail& t : tail_) n += t.records;
+    return n;
+  }
 
  private:
-  // Chunks come from 8 MB blocks, uninitialised until used (no zeroing pass; not huge
-  // pages either: under defrag=madvise a huge-page fault may compact memory for 100s of ms).
-  Chunk* allocate() {
+  // Chunks come from 8 MB blocks, uninitialised until used (no zeroing pass).
+  Chunk<R>* allocate() {
     if (blocks_.empty() || used_ == kBlockChunks) {
-      void* p = std::malloc(kBlockChunks * sizeof(Chunk));
+      void* p = std::malloc(kBlockChunks * sizeof(Chunk<R>));
       if (!p) throw std::bad_alloc();
-      blocks_.emplace_back(static_cast<Chunk*>(p));
+      blocks_.emplace_back(static_cast<Chunk<R>*>(p));
       used_ = 0;
     }
-    return new (&blocks_.back().get()[used_++]) Chunk;
+    return new (&blocks_.back().get()[used_++]) Chunk<R>;
   }
   struct Free {
-    void operator()(Chunk* p) const { std::free(p); }
+    void operator()(Chunk<R>* p) const { std::free(p); }
   };
-  static constexpr std::size_t kBlockChunks = (std::size_t{8} << 20) / sizeof(Chunk);
+  static constexpr std::size_t kBlockChunks = (std::size_t{8} << 20) / sizeof(Chunk<R>);
   struct Tail {
-    Chunk* chunk = nullptr;
+    Chunk<R>* chunk = nullptr;
     std::uint64_t records = 0;
   };
-  std::vector<Chunk*> head_;
+  std::vector<Chunk<R>*> head_;
   std::vector<Tail> tail_;
-  std::vector<std::unique_ptr<Chunk, Free>> blocks_;
+  std::vector<std::unique_ptr<Chunk<R>, Free>> blocks_;
   std::size_t used_ = 0;
+};
+
+// What one thread files in pass 1.
+struct ThreadRecords {
+  explicit ThreadRecords(std::size_t buckets) : sums(buckets), singles(buckets) {}
+  ChunkStore<Record> sums;
+  ChunkStore<Single> singles;
 };
 
 // The geometry of kBatch triangles, computed together (the arithmetic vectorises; the
@@ -151,34 +173,31 @@ struct TriangleBatch {
   }
 };
 
-// Sums one bucket's records (from every thread's chain) into leaves, in Morton order,
+// Sums one bucket's records (from every thread's chains) into leaves, in Morton order,
 // written from `out` on; returns the number written.
 class BucketSummer {
  public:
-  std::size_t sum(const std::vector<const Chunk*>& chains, std::uint64_t records_hint, std::uint64_t bucket,
-                  int low_bits, const LeafGrid& grid, OctreeLeaf* out) {
+  std::size_t sum(const std::vector<std::unique_ptr<ThreadRecords>>& threads, std::size_t bucket,
+                  std::uint64_t records_hint, int low_bits, const LeafGrid& grid, OctreeLeaf* out) {
     std::size_t size = 16;
     while (size < 2 * records_hint) size <<= 1;
-    int shift = 32;
-    for (std::size_t s = size; s > 1; s >>= 1) --shift;
+    shift_ = 32;
+    for (std::size_t s = size; s > 1; s >>= 1) --shift_;
     slots_.assign(size, -1);
-    for (const Chunk* c : chains)
-      for (; c; c = c->next)
+    for (const auto& t : threads) {
+      for (const Chunk<Record>* c = t->sums.head(bucket); c; c = c->next)
         for (std::uint32_t i = 0; i < c->size; ++i) {
           const Record& r = c->records[i];
-          std::size_t h = static_cast<std::uint32_t>(r.cell * 0x9E3779B1u) >> shift;
-          while (slots_[h] >= 0 && sums_[static_cast<std::size_t>(slots_[h])].cell != r.cell)
-            h = (h + 1) & (size - 1);
-          if (slots_[h] < 0) {
-            slots_[h] = static_cast<std::int32_t>(sums_.size());
-            sums_.push_back(Sum{r.cell});
-          }
-          Sum& l = sums_[static_cast<std::size_t>(slots_[h])];
-          l.count += r.count;
-          l.area += r.area;
-          for (int a = 0; a < 3; ++a)
-            l.an[a] += r.an[a], l.af[a] += r.area * (static_cast<float>(r.mean[a]) * (1.0f / 65536.0f));
+          add(r.cell, r.count, r.area, r.an, r.mean);
         }
+      for (const Chunk<Single>* c = t->singles.head(bucket); c; c = c->next)
+        for (std::uint32_t i = 0; i < c->size; ++i) {
+          const Single& r = c->records[i];
+          const float an[3] = {r.an[0], r.an[1], r.an[2]};
+          const std::uint16_t mean[3] = {r.mean[0], r.mean[1], r.mean[2]};
+          add(r.cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
+        }
+    }
     order_.resize(sums_.size());
     for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = std::uint64_t{sums_[i].cell} << 32 | i;
     std::sort(order_.begin(), order_.end());
@@ -208,6 +227,23 @@ class BucketSummer {
     float an[3] = {0, 0, 0};
     float af[3] = {0, 0, 0};
   };
+  void add(std::uint32_t cell, std::uint32_t count, float area, const float an[3],
+           const std::uint16_t mean[3]) {
+    const std::size_t mask = slots_.size() - 1;
+    std::size_t h = static_cast<std::uint32_t>(cell * 0x9E3779B1u) >> shift_;
+    while (slots_[h] >= 0 && sums_[static_cast<std::size_t>(slots_[h])].cell != cell) h = (h + 1) & mask;
+    if (slots_[h] < 0) {
+      slots_[h] = static_cast<std::int32_t>(sums_.size());
+      sums_.push_back(Sum{cell});
+    }
+    Sum& l = sums_[static_cast<std::size_t>(slots_[h])];
+    l.count += count;
+    l.area += area;
+    for (int a = 0; a < 3; ++a)
+      l.an[a] += an[a], l.af[a] += area * (static_cast<float>(mean[a]) * (1.0f / 65536.0f));
+  }
+
+  int shift_ = 32;
   std::vector<std::int32_t> slots_;
   std::vector<Sum> sums_;             // one per leaf, in order of first appearance
   std::vector<std::uint64_t> order_;  // cell << 32 | index into sums_
@@ -232,7 +268,7 @@ int thread_id() {
 // Pass 1 over one thread's slice of the triangles.
 class LeafFiler {
  public:
-  LeafFiler(const LeafGrid& grid, int low_bits, ChunkStore& store)
+  LeafFiler(const LeafGrid& grid, int low_bits, ThreadRecords& store)
       : grid_(grid), low_bits_(low_bits), low_mask_((std::uint64_t{1} << low_bits) - 1), store_(store) {}
 
   void run(const ingest::MeshView& mesh, std::size_t b, std::size_t e) {
@@ -310,16 +346,14 @@ class LeafFiler {
   void file_each(const TriangleBatch& t, int m) {
     for (int j = 0; j < m; ++j) {
       const std::uint64_t key = key_of(t, j);
-      Record& r = store_.append(key >> low_bits_);
+      Single& r = store_.singles.append(key >> low_bits_);
       r.cell = static_cast<std::uint32_t>(key & low_mask_);
-      r.area = t.area[j];
       for (int k = 0; k < 3; ++k) r.an[k] = t.an[k][j], r.mean[k] = quantize(t.f[k][j]);
-      r.count = 1;
     }
   }
 
   void file(const OpenLeaf& l) {
-    Record& r = store_.append(l.key >> low_bits_);
+    Record& r = store_.sums.append(l.key >> low_bits_);
     r.cell = static_cast<std::uint32_t>(l.key & low_mask_);
     r.area = l.area;
     for (int k = 0; k < 3; ++k)
@@ -330,7 +364,7 @@ class LeafFiler {
   const LeafGrid& grid_;
   const int low_bits_;
   const std::uint64_t low_mask_;
-  ChunkStore& store_;
+  ThreadRecords& store_;
   // Open leaves, direct-mapped by key.
   std::vector<OpenLeaf> open_ = std::vector<OpenLeaf>(kOpenLeaves);
   OpenLeaf* last_ = &open_[0];
@@ -349,7 +383,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   const int low_bits = 3 * (grid.depth - bucket_levels);
   const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
   const int threads = thread_count();
-  std::vector<std::unique_ptr<ChunkStore>> stores(static_cast<std::size_t>(threads));
+  std::vector<std::unique_ptr<ThreadRecords>> stores(static_cast<std::size_t>(threads));
 
   // Pass 1: each thread files its slice of the triangles.
 #pragma omp parallel num_threads(threads)
@@ -357,7 +391,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
     const auto t = static_cast<std::size_t>(thread_id());
     const std::size_t b = n * t / static_cast<std::size_t>(threads),
                       e = n * (t + 1) / static_cast<std::size_t>(threads);
-    stores[t] = std::make_unique<ChunkStore>(buckets);
+    stores[t] = std::make_unique<ThreadRecords>(buckets);
     LeafFiler(grid, low_bits, *stores[t]).run(mesh, b, e);
   }
 
@@ -368,11 +402,15 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
-    for (const auto& s : stores) c += s->records(k);
+    for (const auto& s : stores) c += s->sums.records(k) + s->singles.records(k);
     start[k + 1] = start[k] + c;
   }
   const std::uint64_t records = start[buckets];
-  if (record_bytes) *record_bytes = static_cast<std::size_t>(records) * sizeof(Record);
+  if (record_bytes) {
+    *record_bytes = 0;
+    for (const auto& s : stores)
+      *record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
+  }
   OctreeLeaves leaves(records);
   std::vector<std::size_t> part_begin(static_cast<std::size_t>(threads)), part_size(part_begin.size());
 #pragma omp parallel num_threads(threads)
@@ -387,11 +425,9 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
     part_begin[t] = start[kb];
     std::size_t written = 0;
     BucketSummer summer;
-    std::vector<const Chunk*> chains(stores.size());
     for (std::size_t k = kb; k < ke; ++k) {
       if (start[k + 1] == start[k]) continue;
-      for (std::size_t s = 0; s < stores.size(); ++s) chains[s] = stores[s]->head(k);
-      written += summer.sum(chains, start[k + 1] - start[k], k, low_bits, grid,
+      written += summer.sum(stores, k, start[k + 1] - start[k], low_bits, grid,
                             leaves.data() + part_begin[t] + written);
     }
     part_size[t] = written;
