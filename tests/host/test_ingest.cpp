@@ -1,6 +1,7 @@
 // Ingest: every format gives the same mesh; malformed files give one-line errors that
 // name the file and the position, never a crash.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -9,6 +10,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <system_error>
 
 #include "dentmark/host/ingest/cloud_mesher.h"
 #include "dentmark/host/ingest/mesh_writer.h"
@@ -17,10 +19,27 @@
 namespace dentmark::ingest {
 namespace {
 
+// One directory per test process, removed when the process ends, so that no run leaves
+// files behind in /tmp.
+class ScratchDir {
+ public:
+  ScratchDir()
+      : path_(std::filesystem::temp_directory_path() / ("dentmark_ingest_" + std::to_string(::getpid()))) {
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::temp_directory_path() /
-          ("dentmark_ingest_" + std::to_string(::getpid()) + "_" + name))
-      .string();
+  static const ScratchDir dir;
+  return (dir.path() / name).string();
 }
 
 std::string write_file(const std::string& name, const std::string& bytes) {
