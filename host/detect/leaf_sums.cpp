@@ -173,17 +173,18 @@ struct TriangleBatch {
   }
 };
 
-// Sums one bucket's records (from every thread's chains) into leaves, in Morton order,
-// written from `out` on; returns the number written.
+// Sums one bucket's records (from every thread's chains) into leaves, in Morton order.
 class BucketSummer {
  public:
+  // Sums the bucket; returns the number of leaves that write() will write.
   std::size_t sum(const std::vector<std::unique_ptr<ThreadRecords>>& threads, std::size_t bucket,
-                  std::uint64_t records_hint, int low_bits, const LeafGrid& grid, OctreeLeaf* out) {
+                  std::uint64_t records_hint) {
     std::size_t size = 16;
     while (size < 2 * records_hint) size <<= 1;
     shift_ = 32;
     for (std::size_t s = size; s > 1; s >>= 1) --shift_;
     slots_.assign(size, -1);
+    sums_.clear();
     for (const auto& t : threads) {
       for (const Chunk<Record>* c = t->sums.head(bucket); c; c = c->next)
         for (std::uint32_t i = 0; i < c->size; ++i) {
@@ -201,6 +202,11 @@ class BucketSummer {
     order_.resize(sums_.size());
     for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = std::uint64_t{sums_[i].cell} << 32 | i;
     std::sort(order_.begin(), order_.end());
+    return sums_.size();
+  }
+
+  // Writes the summed bucket's leaves from `out` on.
+  void write(std::size_t bucket, int low_bits, const LeafGrid& grid, OctreeLeaf* out) const {
     const float leaf = 1.0f / grid.inv_leaf;
     for (const std::uint64_t o : order_) {
       const Sum& r = sums_[static_cast<std::uint32_t>(o)];
@@ -214,9 +220,6 @@ class BucketSummer {
                                        : Eigen::Vector3f::Constant(0.5f);
       l.centroid = grid.corner(l.key) + mean * leaf;
     }
-    const std::size_t written = sums_.size();
-    sums_.clear();
-    return written;
   }
 
  private:
@@ -396,9 +399,11 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   }
 
   // Pass 2: buckets in key order, split between threads by record count. A bucket has at
-  // least as many records as leaves, so each thread writes its leaves from its first
-  // bucket's record offset on, and the parts are then moved together. Never touched: the
-  // array beyond the leaves (address space only).
+  // least as many records as leaves, so a thread's leaves fit in its buckets' share of a
+  // block sized for the records. Threads work in pairs: the first writes its leaves
+  // backwards, ending where the second's records begin, and the second forwards from
+  // there, so a pair's leaves are one run without being moved (with two threads, the
+  // whole window). The block beyond the window is never touched (address space only).
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
@@ -412,6 +417,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
       *record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
   }
   OctreeLeaves leaves(records);
+  OctreeLeaf* const block = leaves.block();
   std::vector<std::size_t> part_begin(static_cast<std::size_t>(threads)), part_size(part_begin.size());
 #pragma omp parallel num_threads(threads)
   {
@@ -422,25 +428,36 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
                                       start.begin());
     };
     const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
-    part_begin[t] = start[kb];
-    std::size_t written = 0;
     BucketSummer summer;
-    for (std::size_t k = kb; k < ke; ++k) {
-      if (start[k + 1] == start[k]) continue;
-      written += summer.sum(stores, k, start[k + 1] - start[k], low_bits, grid,
-                            leaves.data() + part_begin[t] + written);
+    if (t % 2 == 0) {
+      std::size_t cursor = start[ke];
+      for (std::size_t k = ke; k-- > kb;) {
+        if (start[k + 1] == start[k]) continue;
+        cursor -= summer.sum(stores, k, start[k + 1] - start[k]);
+        summer.write(k, low_bits, grid, block + cursor);
+      }
+      part_begin[t] = cursor, part_size[t] = start[ke] - cursor;
+    } else {
+      std::size_t cursor = start[kb];
+      for (std::size_t k = kb; k < ke; ++k) {
+        if (start[k + 1] == start[k]) continue;
+        const std::size_t written = summer.sum(stores, k, start[k + 1] - start[k]);
+        summer.write(k, low_bits, grid, block + cursor);
+        cursor += written;
+      }
+      part_begin[t] = start[kb], part_size[t] = cursor - start[kb];
     }
-    part_size[t] = written;
   }
   stores.clear();
+  // More than two threads: the pairs' runs are moved together (each to a lower address).
   std::size_t total = 0;
   for (std::size_t p = 0; p < part_begin.size(); ++p) {
-    if (part_begin[p] != total)  // the first part is in place
-      std::memmove(static_cast<void*>(leaves.data() + total), leaves.data() + part_begin[p],
+    if (part_begin[p] != part_begin[0] + total)
+      std::memmove(static_cast<void*>(block + part_begin[0] + total), block + part_begin[p],
                    part_size[p] * sizeof(OctreeLeaf));
     total += part_size[p];
   }
-  leaves.resize(total);
+  leaves.set_window(part_begin[0], total);
   return leaves;
 }
 

@@ -1,6 +1,7 @@
 // Linear octree: eq. (1)-(3) from sums match the brute-force definitions; subdivision
 // finds what is sharp; grouping (eq. 4, 26-adjacency) splits and drops correctly.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -157,6 +158,21 @@ TEST(LinearOctree, LeafSumsAreRightWhenTheOrderChangesWithinAScan) {
   const auto third = static_cast<std::ptrdiff_t>(m.triangles.size() / 3);
   std::shuffle(m.triangles.begin() + third, m.triangles.begin() + 2 * third, rng);
   expect_leaf_sums_match_brute_force(m, 0.001);
+}
+
+TEST(LinearOctree, LeafSumsAreTheSameWhateverTheThreadCount) {
+  // Pass 2 writes the leaves of thread pairs from their meeting point outwards, and moves
+  // the pairs' runs together: 1 to 5 threads (odd counts leave a thread without a pair).
+  std::mt19937 rng(8);
+  std::normal_distribution<double> g(0.0, 0.0001);
+  ingest::Mesh m = grid_mesh(300, 0.0005, [&](double x, double y) { return 0.1 * x * x + g(rng) - 0.2 * y; });
+  const int initial = omp_get_max_threads();
+  for (int threads = 1; threads <= 5; ++threads) {
+    SCOPED_TRACE(threads);
+    omp_set_num_threads(threads);
+    expect_leaf_sums_match_brute_force(m, 0.001);
+  }
+  omp_set_num_threads(initial);
 }
 
 TEST(LinearOctree, FarMoreLeavesThanTheSurfaceAreaSuggestsAreAllKept) {

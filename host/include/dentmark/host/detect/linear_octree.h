@@ -7,10 +7,10 @@
 // pass of sums gives every node.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <new>
-#include <utility>
 #include <vector>
 
 #include "dentmark/host/ingest/mesh_view.h"
@@ -19,8 +19,8 @@ namespace dentmark::detect {
 
 // 40 bytes: a million leaves are fresh memory, and floats hold what a leaf needs (the
 // centroid to 0.1 µm over 2 m; A and S to 1e-7, far below the σ² of a scan's noise).
-// Plain data, set in full where leaves are made: an array of them is allocated without
-// being touched first (see OctreeLeaves).
+// Plain data, set in full where leaves are made: their block is allocated without being
+// touched first (see OctreeLeaves).
 struct OctreeLeaf {
   std::uint64_t key;         // Morton code at the finest depth
   float area;                // A = Σ a_i (m²)
@@ -29,27 +29,36 @@ struct OctreeLeaf {
   std::uint32_t count;       // triangles in the leaf
 };
 
-namespace detail {
-// Default-initialises: growing a vector of plain data does not write (and fault in) it.
-template <typename T>
-struct DefaultInitAllocator : std::allocator<T> {
-  template <typename U>
-  struct rebind {
-    using other = DefaultInitAllocator<U>;
-  };
-  using std::allocator<T>::allocator;
-  template <typename U>
-  void construct(U* p) noexcept {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <typename U, typename... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-}  // namespace detail
+// The leaves in key order: a window of a block allocated for as many leaves as the build
+// could make. Only the window is ever written, so the rest of the block costs address
+// space, not memory (the build writes the window from its middle outwards; see
+// leaf_sums.cpp).
+class OctreeLeaves {
+ public:
+  OctreeLeaves() = default;
+  // A block for up to `capacity` leaves, none in the window yet.
+  explicit OctreeLeaves(std::size_t capacity)
+      : block_(static_cast<OctreeLeaf*>(
+            ::operator new(std::max<std::size_t>(capacity, 1) * sizeof(OctreeLeaf)))),
+        capacity_(capacity) {}
+  OctreeLeaf* block() { return block_.get(); }
+  std::size_t capacity() const { return capacity_; }
+  // The window: leaves [first, first + size) of the block.
+  void set_window(std::size_t first, std::size_t size) { first_ = first, size_ = size; }
 
-using OctreeLeaves = std::vector<OctreeLeaf, detail::DefaultInitAllocator<OctreeLeaf>>;
+  const OctreeLeaf* begin() const { return block_.get() + first_; }
+  const OctreeLeaf* end() const { return begin() + size_; }
+  const OctreeLeaf& operator[](std::size_t i) const { return begin()[i]; }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+
+ private:
+  struct Free {
+    void operator()(OctreeLeaf* p) const { ::operator delete(p); }
+  };
+  std::unique_ptr<OctreeLeaf, Free> block_;
+  std::size_t capacity_ = 0, first_ = 0, size_ = 0;
+};
 
 struct NodeStats {
   double area = 0.0;
