@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "box_mean.h"
 #include "dentmark/common/geometry/plane_fit.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
@@ -163,7 +164,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   const std::vector<float>* fitted = nullptr;
   cv::Mat dev(rows, cols, CV_32F), cand;
   // Working images, reused by every iteration.
-  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, num, den, valid(rows, cols, CV_8U);
+  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, num, valid(rows, cols, CV_8U);
   std::vector<double> scale_sigma(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
@@ -195,15 +196,9 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     std::uint8_t* cp = cand.ptr<std::uint8_t>();
     for (std::size_t s = 0; s < scales.size(); ++s) {
       const int k = scales[s];
-      cv::boxFilter(dz, num, CV_32F, {k, k}, {-1, -1}, false, cv::BORDER_CONSTANT);
-      cv::boxFilter(wv, den, CV_32F, {k, k}, {-1, -1}, false, cv::BORDER_CONSTANT);
-      // The windowed mean where the window is at least 30 % full, NaN elsewhere (in num).
-      float* rs = num.ptr<float>();
-      const float* dp = den.ptr<float>();
-      const float full = 0.3f * static_cast<float>(k * k);
-#pragma omp parallel for schedule(static)
-      for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
-        rs[q] = dp[q] >= full ? rs[q] / std::max(dp[q], 1e-6f) : std::numeric_limits<float>::quiet_NaN();
+      // The windowed mean where the window is at least 30 % full, NaN elsewhere.
+      box_mean(dz, wv, k, 0.3f * static_cast<float>(k * k), num);
+      const float* rs = num.ptr<float>();
       scale_sigma[s] = robust_sigma(num, interior);
       const float thr =
           static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));

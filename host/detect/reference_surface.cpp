@@ -151,8 +151,9 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
   return q;
 }
 
-void ReferenceSurface::blend(int tx, int ty) {
+void ReferenceSurface::blend(int ty, int tx0, int tx1) {
   const int T = tile_;
+  const int c1 = std::min(map_.cols, tx1 * T);
   const float* u = map_.u.data();
   const float* v = map_.v.data();
   const float* weight = map_.weight.data();
@@ -160,40 +161,53 @@ void ReferenceSurface::blend(int tx, int ty) {
     const double fy = (r + 0.5) / T - 0.5;
     const int iy = static_cast<int>(std::floor(fy));
     const double ay = fy - iy;
-    // The tile's columns in runs that share their four nearest fits.
-    for (int c = tx * T, end = c; c < std::min(map_.cols, (tx + 1) * T); c = end) {
+    // The tiles' columns in runs that share their four nearest fits.
+    for (int c = tx0 * T, end = c; c < c1; c = end) {
       const int ix = static_cast<int>(std::floor((c + 0.5) / T - 0.5));
-      while (end < std::min(map_.cols, (tx + 1) * T) &&
-             static_cast<int>(std::floor((end + 0.5) / T - 0.5)) == ix)
-        ++end;
-      // The four fits, (dy, dx) = (0, 0), (0, 1), (1, 0), (1, 1); one that failed has
-      // weight 0 (and zero coefficients, so it adds exactly nothing).
-      double coef[4][6], cu[4], cv[4], wy[4], use[4];
+      while (end < c1 && static_cast<int>(std::floor((end + 0.5) / T - 0.5)) == ix) ++end;
+      // The four fits, (dy, dx) = (0, 0), (0, 1), (1, 0), (1, 1), weighted bilinearly:
+      // fit n weighs (1 - ax or ax) * (1 - ay or ay) + 1e-9, or 0 if it failed. Along
+      // the run only ax changes, so the blend is (A + ax B) / (wa + ax wb), with A and B
+      // quadratics combined from the four, all about the first fit's centre.
+      double A[6] = {0, 0, 0, 0, 0, 0}, B[6] = {0, 0, 0, 0, 0, 0}, wa = 0.0, wb = 0.0;
+      const Quadratic* q0 = nullptr;
       for (int n = 0; n < 4; ++n) {
         const int dy = n / 2, dx = n % 2;
         const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + dy, 0, tiles_y_ - 1)) * tiles_x_ +
                                    std::clamp(ix + dx, 0, tiles_x_ - 1)];
-        use[n] = q.ok ? 1.0 : 0.0;
-        for (int i = 0; i < 6; ++i) coef[n][i] = q.ok ? q.c(i) : 0.0;
-        cu[n] = q.cu, cv[n] = q.cv, wy[n] = dy ? ay : 1 - ay;
+        if (n == 0) q0 = &q;
+        if (!q.ok) continue;
+        const double wy = dy ? ay : 1.0 - ay;
+        const double alpha = dx ? 1e-9 : wy + 1e-9, beta = dx ? wy : -wy;
+        // Its quadratic in x = X - d, y = Y - e, expanded in X, Y (about q0's centre).
+        const double d = (q.cu - q0->cu) * local_scale_, e = (q.cv - q0->cv) * local_scale_;
+        const auto& k = q.c;
+        const double about[6] = {k(0) - k(1) * d - k(2) * e + k(3) * d * d + k(4) * d * e + k(5) * e * e,
+                                 k(1) - 2.0 * k(3) * d - k(4) * e,
+                                 k(2) - k(4) * d - 2.0 * k(5) * e,
+                                 k(3),
+                                 k(4),
+                                 k(5)};
+        for (int i = 0; i < 6; ++i) A[i] += alpha * about[i], B[i] += beta * about[i];
+        wa += alpha, wb += beta;
       }
+      if (!(wa > 0.0)) {  // no fit near: nothing is measured here
+        std::fill(ref_.begin() + static_cast<std::ptrdiff_t>(r) * map_.cols + c,
+                  ref_.begin() + static_cast<std::ptrdiff_t>(r) * map_.cols + end,
+                  std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      const double cu = q0->cu, cv = q0->cv, s = local_scale_;
       float* out = ref_.data() + static_cast<std::size_t>(r) * map_.cols;
       const std::size_t row = static_cast<std::size_t>(r) * map_.cols;
 #pragma omp simd
       for (int cc = c; cc < end; ++cc) {
         const double ax = ((cc + 0.5) / T - 0.5) - ix;
-        const double pu = u[row + cc], pv = v[row + cc];
-        double sum = 0.0, wsum = 0.0;
-        const auto add = [&](int n, double wx) {
-          const double wgt = use[n] * (wx * wy[n] + 1e-9);
-          const double x = (pu - cu[n]) * local_scale_, y = (pv - cv[n]) * local_scale_;
-          const double val = coef[n][0] + coef[n][1] * x + coef[n][2] * y + coef[n][3] * x * x +
-                             coef[n][4] * x * y + coef[n][5] * y * y;
-          sum += wgt * val, wsum += wgt;
-        };
-        add(0, 1 - ax), add(1, ax), add(2, 1 - ax), add(3, ax);
-        const bool fitted = (weight[row + cc] > 0.0f) & (wsum > 0.0);
-        out[cc] = fitted ? static_cast<float>(sum / wsum) : std::numeric_limits<float>::quiet_NaN();
+        const double X = (u[row + cc] - cu) * s, Y = (v[row + cc] - cv) * s;
+        const double a = A[0] + A[1] * X + A[2] * Y + A[3] * X * X + A[4] * X * Y + A[5] * Y * Y;
+        const double b = B[0] + B[1] * X + B[2] * Y + B[3] * X * X + B[4] * X * Y + B[5] * Y * Y;
+        const float val = static_cast<float>((a + ax * b) / (wa + ax * wb));
+        out[cc] = weight[row + cc] > 0.0f ? val : std::numeric_limits<float>::quiet_NaN();
       }
     }
   }
@@ -236,9 +250,28 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
 #pragma omp parallel for schedule(dynamic, 16)
   for (std::size_t i = 0; i < fits.size(); ++i)
     fits_[static_cast<std::size_t>(fits[i])] = fit_at(fits[i] % tiles_x_, fits[i] / tiles_x_);
-  const std::vector<int> blends = marked_list(grow(refit, tiles_x_, tiles_y_, 1));
-#pragma omp parallel for schedule(dynamic, 16)
-  for (std::size_t i = 0; i < blends.size(); ++i) blend(blends[i] % tiles_x_, blends[i] / tiles_x_);
+  // Pixels are blended in spans of consecutive tiles of a tile row (a run of pixels
+  // then spans a whole tile, not half of one).
+  const std::vector<std::uint8_t> reblend = grow(refit, tiles_x_, tiles_y_, 1);
+  struct Span {
+    int ty, tx0, tx1;
+  };
+  std::vector<Span> spans;
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_;) {
+      if (!reblend[static_cast<std::size_t>(ty) * tiles_x_ + tx]) {
+        ++tx;
+        continue;
+      }
+      Span sp{ty, tx, tx};
+      while (sp.tx1 < tiles_x_ && reblend[static_cast<std::size_t>(ty) * tiles_x_ + sp.tx1] &&
+             sp.tx1 - sp.tx0 < 32)
+        ++sp.tx1;
+      spans.push_back(sp);
+      tx = sp.tx1;
+    }
+#pragma omp parallel for schedule(dynamic, 4)
+  for (std::size_t i = 0; i < spans.size(); ++i) blend(spans[i].ty, spans[i].tx0, spans[i].tx1);
   return ref_;
 }
 

@@ -43,7 +43,7 @@ class ReferenceSurface {
   Moments tile_moments(int tx, int ty, const std::vector<float>& weights) const;
   void integrate();
   Quadratic fit_at(int tx, int ty) const;
-  void blend(int tx, int ty);  // the pixels of one tile
+  void blend(int ty, int tx0, int tx1);  // the pixels of tiles [tx0, tx1) of tile row ty
 
   const HeightMap& map_;
   int tile_ = 4, radius_ = 1;  // tile side (pixels); window half-side (tiles)
