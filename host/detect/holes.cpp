@@ -20,9 +20,11 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   const int* lab = labels.ptr<int>();
   const float* dev = deviation.ptr<float>();
 
-  // Candidates: enclosed, small enough.
+  // Candidates: enclosed, small enough. Their pixels are gathered once they have the
+  // evidence (most never do: a dense scan has thousands of one-pixel gaps).
   std::vector<int> index(static_cast<std::size_t>(n), -1);
   std::vector<HoleRegion> cand;
+  std::vector<int> cand_area;
   for (int i = 1; i < n; ++i) {
     const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
     const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
@@ -31,37 +33,9 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
     if (d > max_diameter) continue;
     index[static_cast<std::size_t>(i)] = static_cast<int>(cand.size());
     cand.push_back({{}, 0, d, 0.0, {}});
+    cand_area.push_back(stats.at<int>(i, cv::CC_STAT_AREA));
   }
   if (cand.empty()) return {};
-  for (std::int32_t k = 0; k < rows * cols; ++k)
-    if (lab[k] > 0 && index[static_cast<std::size_t>(lab[k])] >= 0)
-      cand[static_cast<std::size_t>(index[static_cast<std::size_t>(lab[k])])].pixels.push_back(k);
-
-  // Ringed by skin: most pixels within two of the region are surface near the reference.
-  std::vector<char> ringed(cand.size(), 0);
-  for (std::size_t c = 0; c < cand.size(); ++c) {
-    int ring = 0, skin = 0;
-    const int own = lab[cand[c].pixels.front()];
-    std::vector<std::int32_t> seen;
-    for (auto k : cand[c].pixels)
-      for (int dr = -2; dr <= 2; ++dr)
-        for (int dc = -2; dc <= 2; ++dc) {
-          const int r = k / cols + dr, cc = k % cols + dc;
-          if (r < 0 || cc < 0 || r >= rows || cc >= cols) continue;
-          const int q = r * cols + cc;
-          if (lab[q] == own) continue;
-          seen.push_back(q);
-        }
-    std::sort(seen.begin(), seen.end());
-    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
-    for (auto q : seen) {
-      ++ring;
-      if (map.weight[static_cast<std::size_t>(q)] > 0.0f && std::isfinite(dev[q]) &&
-          std::abs(dev[q]) <= behind_depth)
-        ++skin;
-    }
-    ringed[c] = ring > 0 && skin >= 0.7 * ring;
-  }
 
   // Evidence: points behind the skin traced back towards the sensor (or straight along
   // the map normal when the scan frame is not the sensor's) until they reach the skin's
@@ -70,6 +44,13 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   std::vector<std::vector<std::int32_t>> seen_deep(cand.size());
   const Eigen::Vector3d up(0.0, 0.0, 1.0);
   const double step = 0.5 * map.pixel;
+  // A ray that has seen no skin yet and has risen to the highest skin's level can meet
+  // no candidate after some skin below it: it is traced no further.
+  double skin_top = -std::numeric_limits<double>::infinity();
+  for (std::int32_t k = 0; k < rows * cols; ++k)
+    if (map.weight[static_cast<std::size_t>(k)] > 0.0f && std::isfinite(ref[static_cast<std::size_t>(k)]) &&
+        !deep.data[k])
+      skin_top = std::max(skin_top, static_cast<double>(ref[static_cast<std::size_t>(k)]));
   auto trace = [&](const Eigen::Vector3d& b, std::int32_t deep_pixel) {
     const Eigen::Vector3d dir = map.has_viewpoint ? (map.viewpoint - b).normalized() : up;
     if (!(dir.z() > 0.05)) return;
@@ -77,7 +58,7 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
     Eigen::Vector3d p = b;
     for (int i = 0; i < 600; ++i, p += step * dir) {
       const long k = map.pixel_of(p.x(), p.y());
-      if (k < 0) return;
+      if (k < 0 || (!std::isfinite(last_ref) && p.z() >= skin_top - behind_depth)) return;
       const int c = lab[k] > 0 ? index[static_cast<std::size_t>(lab[k])] : -1;
       if (c >= 0) {
         if (std::isfinite(last_ref) && p.z() >= last_ref - behind_depth) {
@@ -101,11 +82,54 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
       trace({map.u[q], map.v[q], map.w[q]}, k);
     }
 
+  // The evidence: at least 3 points, and one for every 10 pixels.
+  std::vector<char> evident(cand.size(), 0);
+  bool any = false;
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    const auto evidence = static_cast<int>(depths[c].size());
+    evident[c] = evidence >= 3 && 10 * evidence >= cand_area[c];
+    any = any || evident[c];
+  }
+  if (!any) return {};
+  for (std::int32_t k = 0; k < rows * cols; ++k)
+    if (lab[k] > 0) {
+      const int c = index[static_cast<std::size_t>(lab[k])];
+      if (c >= 0 && evident[static_cast<std::size_t>(c)])
+        cand[static_cast<std::size_t>(c)].pixels.push_back(k);
+    }
+
+  // Ringed by skin: most pixels within two of the region are surface near the reference.
+  std::vector<char> ringed(cand.size(), 0);
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    if (!evident[c]) continue;
+    int ring = 0, skin = 0;
+    const int own = lab[cand[c].pixels.front()];
+    std::vector<std::int32_t> seen;
+    for (auto k : cand[c].pixels)
+      for (int dr = -2; dr <= 2; ++dr)
+        for (int dc = -2; dc <= 2; ++dc) {
+          const int r = k / cols + dr, cc = k % cols + dc;
+          if (r < 0 || cc < 0 || r >= rows || cc >= cols) continue;
+          const int q = r * cols + cc;
+          if (lab[q] == own) continue;
+          seen.push_back(q);
+        }
+    std::sort(seen.begin(), seen.end());
+    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+    for (auto q : seen) {
+      ++ring;
+      if (map.weight[static_cast<std::size_t>(q)] > 0.0f && std::isfinite(dev[q]) &&
+          std::abs(dev[q]) <= behind_depth)
+        ++skin;
+    }
+    ringed[c] = ring > 0 && skin >= 0.7 * ring;
+  }
+
   std::vector<HoleRegion> holes;
   for (std::size_t c = 0; c < cand.size(); ++c) {
     auto& d = depths[c];
     const auto evidence = static_cast<int>(d.size());
-    if (!ringed[c] || evidence < 3 || 10 * evidence < static_cast<int>(cand[c].pixels.size())) continue;
+    if (!evident[c] || !ringed[c]) continue;
     std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
     cand[c].behind = evidence;
     cand[c].seen_deep = std::move(seen_deep[c]);
