@@ -19,16 +19,29 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
   const auto inv = static_cast<float>(1.0 / map.pixel);
   const auto cols = static_cast<float>(map.cols), rows = static_cast<float>(map.rows);
   const auto n = static_cast<std::int64_t>(mesh.vertex_count());
+  // In blocks: the pixels of a block's vertices in a loop without branches (-1 off the
+  // map), then the few selected ones picked out.
+  constexpr std::int64_t kBlock = 256;
+  const std::int32_t map_cols = map.cols;
+  const std::int64_t blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel
   {
     std::vector<std::pair<std::int32_t, Eigen::Vector3f>> mine;
+    std::int32_t pixel[kBlock];
 #pragma omp for schedule(static) nowait
-    for (std::int64_t i = 0; i < n; ++i) {
-      const Eigen::Vector3f q = axes * (mesh.vertex(static_cast<std::size_t>(i)) - origin);
-      const float c = (q.x() - u0) * inv, r = (q.y() - v0) * inv;
-      if (!(c >= 0.0f && r >= 0.0f && c < cols && r < rows)) continue;  // also NaN
-      const auto k = static_cast<std::int32_t>(r) * map.cols + static_cast<std::int32_t>(c);
-      if (select[static_cast<std::size_t>(k)]) mine.emplace_back(k, q);
+    for (std::int64_t blk = 0; blk < blocks; ++blk) {
+      const std::int64_t first = blk * kBlock, m = std::min(kBlock, n - first);
+      for (std::int64_t j = 0; j < m; ++j) {
+        const Eigen::Vector3f p = mesh.vertex(static_cast<std::size_t>(first + j)) - origin;
+        const float c = (axes.row(0).dot(p) - u0) * inv, r = (axes.row(1).dot(p) - v0) * inv;
+        const bool on = (c >= 0.0f) & (r >= 0.0f) & (c < cols) & (r < rows);  // also not NaN
+        const auto ci = static_cast<std::int32_t>(on ? c : 0.0f),
+                   ri = static_cast<std::int32_t>(on ? r : 0.0f);
+        pixel[j] = on ? ri * map_cols + ci : -1;
+      }
+      for (std::int64_t j = 0; j < m; ++j)
+        if (pixel[j] >= 0 && select[static_cast<std::size_t>(pixel[j])])
+          mine.emplace_back(pixel[j], axes * (mesh.vertex(static_cast<std::size_t>(first + j)) - origin));
     }
 #pragma omp critical
     found.insert(found.end(), mine.begin(), mine.end());
