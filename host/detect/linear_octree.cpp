@@ -73,15 +73,54 @@ NodeStats LinearOctree::stats(std::size_t begin, std::size_t end) const {
 }
 
 std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, double leaf_sigma) const {
-  // Top-down (eq. 3). A node's leaves are one range; one scan of it gives its eight
-  // children's ranges and sums, so each level costs one pass over the leaves still
-  // being split (no prefix arrays: 33 MB of fresh memory on a 9 M-triangle scan).
-  std::vector<std::uint32_t> out;
+  // Top-down (eq. 3). A node's leaves are one range. The coarse levels, which every
+  // panel's curvature splits, come from one pass of sums per node at level `top` (each
+  // level would otherwise scan every leaf again); below it, one scan of a node's range
+  // gives its eight children's ranges and sums, so each level costs one pass over the
+  // leaves still being split (no prefix arrays: 33 MB of fresh memory on a 9 M-triangle
+  // scan).
   struct Node {
     std::size_t begin, end;
     int level;
   };
-  std::vector<Node> stack{{0, leaves_.size(), 0}};
+  const int top = std::min(depth_ - 1, 5);  // 8^5 nodes: 1 MB of sums
+  const int top_shift = 3 * (depth_ - top);
+  const std::size_t top_nodes = std::size_t{1} << (3 * top);
+  std::vector<double> top_area(top_nodes, 0.0);
+  std::vector<Eigen::Vector3d> top_sum_an(top_nodes, Eigen::Vector3d::Zero());
+  std::vector<std::size_t> first(top_nodes + 1, leaves_.size());  // first leaf at or after a node
+  for (std::size_t l = 0; l < leaves_.size(); ++l) {
+    const auto n = static_cast<std::size_t>(leaves_[l].key >> top_shift);
+    top_area[n] += leaves_[l].area;
+    top_sum_an[n] += leaves_[l].sum_an.cast<double>();
+    first[n] = std::min(first[n], l);
+  }
+  for (std::size_t n = top_nodes; n-- > 0;) first[n] = std::min(first[n], first[n + 1]);
+  // Level by level from the root, each node's sums from its descendants at level `top`.
+  std::vector<Node> frontier;  // the level-`top` nodes to split
+  std::vector<std::size_t> split{0};
+  for (int level = 0; level < top; ++level) {
+    const int below = 3 * (top - level - 1);  // a child's span of level-`top` nodes, in bits
+    std::vector<std::size_t> next;
+    for (const std::size_t node : split)
+      for (std::size_t c = 8 * node; c < 8 * node + 8; ++c) {
+        const std::size_t lo = c << below, hi = (c + 1) << below;
+        if (first[lo] == first[hi]) continue;  // no leaves
+        double a = 0.0;
+        Eigen::Vector3d s = Eigen::Vector3d::Zero();
+        for (std::size_t n = lo; n < hi; ++n) a += top_area[n], s += top_sum_an[n];
+        if (from_sums(a, s).sigma <= split_sigma) continue;
+        if (level + 1 < top)
+          next.push_back(c);
+        else
+          frontier.push_back({first[lo], first[hi], top});
+      }
+    split = std::move(next);
+  }
+  if (top == 0) frontier.push_back({0, leaves_.size(), 0});
+
+  std::vector<std::uint32_t> out;
+  std::vector<Node> stack(frontier.rbegin(), frontier.rend());
   while (!stack.empty()) {
     const Node node = stack.back();
     stack.pop_back();

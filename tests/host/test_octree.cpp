@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <random>
 
@@ -190,6 +191,48 @@ TEST(LinearOctree, FarMoreLeavesThanTheSurfaceAreaSuggestsAreAllKept) {
     m.triangles.push_back({base, base + 1, base + 2});
   }
   expect_leaf_sums_match_brute_force(m, 0.001);
+}
+
+// The top-down subdivision the slow way: every node's σ from stats() over its range.
+std::vector<std::uint32_t> feature_leaves_by_hand(const LinearOctree& t, double split_sigma,
+                                                  double leaf_sigma) {
+  std::vector<std::uint32_t> out;
+  const auto& leaves = t.leaves();
+  const std::function<void(std::size_t, std::size_t, int)> split = [&](std::size_t b, std::size_t e,
+                                                                       int level) {
+    const int shift = 3 * (t.depth() - level - 1);
+    for (std::size_t i = b, j = b; i < e; i = j) {
+      while (j < e && (leaves[j].key >> shift) == (leaves[i].key >> shift)) ++j;
+      const double sigma = t.stats(i, j).sigma;
+      if (level + 1 == t.depth()) {
+        if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(i));
+      } else if (sigma > split_sigma) {
+        split(i, j, level + 1);
+      }
+    }
+  };
+  split(0, leaves.size(), 0);
+  return out;
+}
+
+TEST(LinearOctree, SubdivisionEqualsTheNodeByNodeDefinition) {
+  // A curved, noisy panel with bumps and a ridge, 8 levels deep (the coarse levels come
+  // from one pass of sums, the fine ones from range scans).
+  std::mt19937 rng(21);
+  std::normal_distribution<double> g(0.0, 0.00002);
+  const ingest::Mesh m = grid_mesh(400, 0.0005, [&](double x, double y) {
+    const double bump = 0.0008 * std::exp(-(std::pow(x - 0.05, 2) + std::pow(y - 0.12, 2)) / 2e-5);
+    const double ridge = x > 0.14 ? 0.3 * (x - 0.14) : 0.0;
+    return 0.8 * x * x + 0.4 * x * y + bump + ridge + g(rng);
+  });
+  const LinearOctree tree = LinearOctree::build(m, 0.001);
+  ASSERT_GE(tree.depth(), 8);
+  for (const auto& [split, leaf] : {std::pair{0.01, 0.03}, std::pair{0.03, 0.06}, std::pair{0.1, 0.2}}) {
+    SCOPED_TRACE(split);
+    const auto expected = feature_leaves_by_hand(tree, split, leaf);
+    EXPECT_FALSE(expected.empty());
+    EXPECT_EQ(tree.feature_leaves(split, leaf), expected);
+  }
 }
 
 TEST(LinearOctree, SubdivisionFindsARidgeAndGroupingSeparatesTwo) {
