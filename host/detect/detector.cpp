@@ -141,11 +141,12 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       outside[static_cast<std::size_t>(i)] =
           stats.at<int>(i, cv::CC_STAT_AREA) >= big || x == 0 || y == 0 || x + w == cols || y + hh == rows;
     }
-    cv::Mat out_mask(rows, cols, CV_8U, cv::Scalar(0));
-    for (int r = 0; r < rows; ++r)
-      for (int c = 0; c < cols; ++c)
-        if (outside[static_cast<std::size_t>(lab.at<int>(r, c))] && empty.at<std::uint8_t>(r, c))
-          out_mask.at<std::uint8_t>(r, c) = 255;
+    cv::Mat out_mask(rows, cols, CV_8U);
+    const int* lp = lab.ptr<int>();  // 0 on occupied pixels, which outside[0] = 0 leaves out
+    std::uint8_t* op = out_mask.ptr<std::uint8_t>();
+#pragma omp parallel for schedule(static)
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+      op[k] = outside[static_cast<std::size_t>(lp[k])] ? 255 : 0;
     const int rad = std::max(2, static_cast<int>(std::lround(0.003 / h)));
     cv::dilate(out_mask, edge_zone, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
     edge_zone &= occupied;
