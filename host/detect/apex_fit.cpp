@@ -10,7 +10,9 @@ namespace dentmark::detect {
 
 PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
                            const std::vector<std::uint8_t>& select) {
-  std::vector<std::pair<std::int32_t, Eigen::Vector3f>> found;
+  // (pixel << 32 | vertex, point): sorted, the points of a pixel in vertex order
+  // whatever order the threads' finds were merged in (the same result every run).
+  std::vector<std::pair<std::uint64_t, Eigen::Vector3f>> found;
   const Eigen::Matrix3f axes = map.axes.cast<float>();
   const Eigen::Vector3f origin = map.origin.cast<float>();
   // Pixel of a point as HeightMap::pixel_of, in floats (map coordinates within metres of
@@ -26,7 +28,7 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
   const std::int64_t blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel
   {
-    std::vector<std::pair<std::int32_t, Eigen::Vector3f>> mine;
+    std::vector<std::pair<std::uint64_t, Eigen::Vector3f>> mine;
     std::int32_t pixel[kBlock];
 #pragma omp for schedule(static) nowait
     for (std::int64_t blk = 0; blk < blocks; ++blk) {
@@ -41,7 +43,9 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
       }
       for (std::int64_t j = 0; j < m; ++j)
         if (pixel[j] >= 0 && select[static_cast<std::size_t>(pixel[j])])
-          mine.emplace_back(pixel[j], axes * (mesh.vertex(static_cast<std::size_t>(first + j)) - origin));
+          mine.emplace_back(std::uint64_t{static_cast<std::uint32_t>(pixel[j])} << 32 |
+                                static_cast<std::uint32_t>(first + j),
+                            axes * (mesh.vertex(static_cast<std::size_t>(first + j)) - origin));
     }
 #pragma omp critical
     found.insert(found.end(), mine.begin(), mine.end());
@@ -49,7 +53,7 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   keys_.reserve(found.size());
   points_.reserve(found.size());
-  for (const auto& [k, q] : found) keys_.push_back(k), points_.push_back(q);
+  for (const auto& [k, q] : found) keys_.push_back(static_cast<std::int32_t>(k >> 32)), points_.push_back(q);
 }
 
 void PixelSamples::append(std::int32_t pixel, std::vector<Eigen::Vector3d>& out) const {

@@ -75,6 +75,29 @@ TEST(Detect, FindsTargetSizedDefectsWithPositionAndDepth) {
   EXPECT_GE(depth_ok, 9);
 }
 
+TEST(Detect, TheSameScanGivesTheSameFindingsToTheLastBit) {
+  // A station's reports must be reproducible: the vertex samples under a candidate were
+  // once merged in whatever order the threads finished, which moved a height in its
+  // 16th digit from one run to the next.
+  sim::scan::SynthScan scan = sim::scan::synthesize_scan(small_door(13));
+  ingest::Mesh mesh;
+  mesh.vertices = scan.vertices;
+  mesh.triangles = scan.triangles;
+  const detect::Detection first = detect::detect(mesh, detect::DetectConfig{});
+  ASSERT_EQ(first.defects.size(), 5u);
+  for (int run = 0; run < 8; ++run) {
+    const detect::Detection again = detect::detect(mesh, detect::DetectConfig{});
+    ASSERT_EQ(again.defects.size(), first.defects.size());
+    for (std::size_t i = 0; i < first.defects.size(); ++i) {
+      const auto &a = first.defects[i].defect, &b = again.defects[i].defect;
+      EXPECT_EQ(a.position, b.position);
+      EXPECT_EQ(a.normal, b.normal);
+      EXPECT_EQ(a.height, b.height);
+      EXPECT_EQ(a.diameter, b.diameter);
+    }
+  }
+}
+
 TEST(Detect, ThroughHolesAreHolesAndDropoutsAreNot) {
   // Holes show the inner structure 60 mm behind the skin; dropouts show nothing. Both are
   // empty discs on the skin of similar size; only the holes may be reported.
