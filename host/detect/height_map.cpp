@@ -77,17 +77,15 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
-  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), computed again where
-  // needed rather than kept (12 MB of fresh memory on a 9 M-triangle scan), and the bounds.
+  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), and the bounds.
   const auto count = static_cast<std::int64_t>(leaves.size());
-  const auto leaf_q = [&](std::int64_t i) -> Eigen::Vector3f {
-    return map.to_map(leaves[static_cast<std::size_t>(i)].centroid.cast<double>()).cast<float>();
-  };
+  std::vector<Eigen::Vector3f> q(leaves.size());
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {
     if (!(leaves[i].area > 0.0f)) continue;
     const Eigen::Vector3d p = map.to_map(leaves[i].centroid.cast<double>());
+    q[i] = p.cast<float>();
     umin = std::min(umin, p.x()), umax = std::max(umax, p.x());
     vmin = std::min(vmin, p.y()), vmax = std::max(vmax, p.y());
   }
@@ -99,19 +97,18 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   std::vector<std::int32_t> pix(leaves.size(), -1);
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < count; ++i)
-    if (leaves[i].area > 0.0f) {
-      const Eigen::Vector3f q = leaf_q(i);
-      pix[i] = static_cast<std::int32_t>(map.pixel_of(q.x(), q.y()));
-    }
+    if (leaves[i].area > 0.0f) pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
   // A single view sees the front surface of each column. Leaves more than layer_depth
   // behind the column's front were seen through a hole (or are outliers): kept aside.
   // (Anchoring on the column's busiest leaf instead lets a hole's backdrop win the rim
   // columns; an outlier in front only spoils its own pixel, which the median removes.)
-  std::vector<float> front(n);
+  std::vector<float> front(n, -std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < leaves.size(); ++i)
+    if (pix[i] >= 0) front[pix[i]] = std::max(front[pix[i]], q[i].z());
   // Area-weighted sums per pixel, straight into the map's arrays (a pixel holds one or two
   // leaves: float sums lose nothing), then divided in place.
-  // Each thread owns a band of pixels and reads every leaf's pixel, so each pixel is
-  // summed in leaf order by one thread (the same sums as one thread's).
+  // Each thread owns a band of pixel rows and reads every leaf, so each pixel is summed
+  // in leaf order by one thread (the same sums as one thread's).
   map.weight.assign(n, 0.0f);
   map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
   std::vector<Eigen::Vector3f> sn(n, Eigen::Vector3f::Zero());
@@ -127,21 +124,15 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
         static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t) / bands);
     const auto last =
         static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t + 1) / bands);
-    std::fill(front.begin() + first, front.begin() + last, -std::numeric_limits<float>::infinity());
-    for (std::size_t i = 0; i < leaves.size(); ++i) {
-      const std::int32_t k = pix[i];
-      if (k >= first && k < last) front[k] = std::max(front[k], leaf_q(static_cast<std::int64_t>(i)).z());
-    }
     for (std::size_t i = 0; i < leaves.size(); ++i) {
       const std::int32_t k = pix[i];
       if (k < first || k >= last) continue;  // also -1
-      const Eigen::Vector3f q = leaf_q(static_cast<std::int64_t>(i));
-      if (q.z() < front[k] - layer) {
-        behind[t].push_back(q);
+      if (q[i].z() < front[k] - layer) {
+        behind[t].push_back(q[i]);
         continue;
       }
       const float a = leaves[i].area;
-      map.weight[k] += a, map.u[k] += a * q.x(), map.v[k] += a * q.y(), map.w[k] += a * q.z();
+      map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
       sn[k] += leaves[i].sum_an;
     }
   }
