@@ -78,7 +78,8 @@ ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
 
 void ReferenceSurface::integrate() {
   const int ic = tiles_x_ + 1;
-  integral_.assign(static_cast<std::size_t>(ic) * (tiles_y_ + 1), Moments{});
+  if (integral_.empty()) integral_.resize(static_cast<std::size_t>(ic) * (tiles_y_ + 1));  // zeros
+  // Row 0 and column 0 stay zero; every other entry is written below.
   for (int ty = 0; ty < tiles_y_; ++ty)
     for (int tx = 0; tx < tiles_x_; ++tx) {
       Moments& o = integral_[static_cast<std::size_t>(ty + 1) * ic + tx + 1];
