@@ -21,18 +21,23 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   if (mesh.triangle_count() == 0) throw std::invalid_argument("octree of an empty mesh");
   if (mesh.triangle_count() >= (1ull << 32)) throw std::invalid_argument("more than 4 G triangles");
 
-  // Bounding box of the vertices (finite by ingest's contract).
+  // Bounding box of the vertices (finite by ingest's contract), unless the reader
+  // measured it on its way.
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+  if (mesh.has_bounds()) {
+    lo = mesh.bounds_min(), hi = mesh.bounds_max();
+  } else {
 #pragma omp parallel
-  {
-    Eigen::Vector3f l = lo, h = hi;
+    {
+      Eigen::Vector3f l = lo, h = hi;
 #pragma omp for nowait schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(mesh.vertex_count()); ++i) {
-      const Eigen::Vector3f v = mesh.vertex(static_cast<std::size_t>(i));
-      if (v.allFinite()) l = l.cwiseMin(v), h = h.cwiseMax(v);
-    }
+      for (std::int64_t i = 0; i < static_cast<std::int64_t>(mesh.vertex_count()); ++i) {
+        const Eigen::Vector3f v = mesh.vertex(static_cast<std::size_t>(i));
+        if (v.allFinite()) l = l.cwiseMin(v), h = h.cwiseMax(v);
+      }
 #pragma omp critical
-    lo = lo.cwiseMin(l), hi = hi.cwiseMax(h);
+      lo = lo.cwiseMin(l), hi = hi.cwiseMax(h);
+    }
   }
   const double extent = (hi - lo).cast<double>().maxCoeff() + leaf_size;
   int depth = 1;

@@ -504,16 +504,24 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     not_three |= static_cast<std::uint8_t>(q[0]) ^ 3u;
   }
   if (not_three != 0 || largest >= limit) return std::nullopt;
+  // Every coordinate finite, and on the way the bounding box (the octree needs it).
   std::int64_t bad = 0;
-#pragma omp parallel for schedule(static) reduction(+ : bad)
+  const float inf = std::numeric_limits<float>::infinity();
+  float x0 = inf, y0 = inf, z0 = inf, x1 = -inf, y1 = -inf, z1 = -inf;
+#pragma omp parallel for schedule(static) reduction(+ : bad) reduction(min : x0, y0, z0) reduction(max : x1, y1, z1)
   for (std::int64_t i = 0; i < nv; ++i) {
     float c[3];
     std::memcpy(c, vertices + static_cast<std::size_t>(i) * vertex_stride, sizeof c);
     bad += !(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]));
+    x0 = std::min(x0, c[0]), y0 = std::min(y0, c[1]), z0 = std::min(z0, c[2]);
+    x1 = std::max(x1, c[0]), y1 = std::max(y1, c[1]), z1 = std::max(z1, c[2]);
   }
   if (bad != 0) return std::nullopt;
-  return MeshView(reinterpret_cast<const std::byte*>(vertices), vertex_count, vertex_stride,
-                  reinterpret_cast<const std::byte*>(faces + 1), face_count, 13, scale);
+  MeshView view(reinterpret_cast<const std::byte*>(vertices), vertex_count, vertex_stride,
+                reinterpret_cast<const std::byte*>(faces + 1), face_count, 13, scale);
+  // Scaled as vertex() scales (scale > 0 keeps min and max apart).
+  view.set_bounds(Eigen::Vector3f(x0, y0, z0) * scale, Eigen::Vector3f(x1, y1, z1) * scale);
+  return view;
 }
 
 }  // namespace dentmark::ingest::detail

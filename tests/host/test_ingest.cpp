@@ -365,6 +365,13 @@ TEST(Scan, ScannerLayoutIsUsedInPlace) {
   // The same bytes through the copying reader give the very same coordinates.
   const Mesh copy = read_mesh(write_file("s3.ply", triangle_block_ply(4)), mm);
   for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(scaled.mesh.vertex(i), copy.vertices[i]);
+  // The check's bounding box is the vertices' own, scaled as they are.
+  ASSERT_TRUE(scaled.mesh.has_bounds());
+  Eigen::Vector3f lo = scaled.mesh.vertex(0), hi = lo;
+  for (std::size_t i = 1; i < 5; ++i)
+    lo = lo.cwiseMin(scaled.mesh.vertex(i)), hi = hi.cwiseMax(scaled.mesh.vertex(i));
+  EXPECT_EQ(scaled.mesh.bounds_min(), lo);
+  EXPECT_EQ(scaled.mesh.bounds_max(), hi);
 }
 
 TEST(Scan, AnyOtherLayoutIsReadAndGivesTheSameMesh) {

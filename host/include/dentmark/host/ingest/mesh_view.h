@@ -51,6 +51,15 @@ class MeshView {
     std::memcpy(t.data(), triangles_ + i * triangle_stride_, sizeof t);
     return t;
   }
+  // The vertices' bounding box (in metres), when whoever made the view measured it on
+  // the way (the in-place PLY check does); consumers compute it otherwise.
+  bool has_bounds() const { return has_bounds_; }
+  const Eigen::Vector3f& bounds_min() const { return min_; }
+  const Eigen::Vector3f& bounds_max() const { return max_; }
+  void set_bounds(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+    min_ = min, max_ = max, has_bounds_ = true;
+  }
+
   // For prefetching ahead of random gathers.
   const std::byte* vertex_address(std::size_t i) const { return vertices_ + i * vertex_stride_; }
   const std::byte* triangle_address(std::size_t i) const { return triangles_ + i * triangle_stride_; }
@@ -61,6 +70,8 @@ class MeshView {
   std::size_t vertex_count_ = 0, triangle_count_ = 0;
   std::size_t vertex_stride_ = sizeof(Eigen::Vector3f), triangle_stride_ = 12;
   float scale_ = 1.0f;
+  bool has_bounds_ = false;
+  Eigen::Vector3f min_ = Eigen::Vector3f::Zero(), max_ = Eigen::Vector3f::Zero();
 };
 
 }  // namespace dentmark::ingest
