@@ -39,10 +39,8 @@ class OctreeLeaves {
   // A block for up to `capacity` leaves, none in the window yet.
   explicit OctreeLeaves(std::size_t capacity)
       : block_(static_cast<OctreeLeaf*>(
-            ::operator new(std::max<std::size_t>(capacity, 1) * sizeof(OctreeLeaf)))),
-        capacity_(capacity) {}
+            ::operator new(std::max<std::size_t>(capacity, 1) * sizeof(OctreeLeaf)))) {}
   OctreeLeaf* block() { return block_.get(); }
-  std::size_t capacity() const { return capacity_; }
   // The window: leaves [first, first + size) of the block.
   void set_window(std::size_t first, std::size_t size) { first_ = first, size_ = size; }
 
@@ -57,7 +55,7 @@ class OctreeLeaves {
     void operator()(OctreeLeaf* p) const { ::operator delete(p); }
   };
   std::unique_ptr<OctreeLeaf, Free> block_;
-  std::size_t capacity_ = 0, first_ = 0, size_ = 0;
+  std::size_t first_ = 0, size_ = 0;
 };
 
 struct NodeStats {
