@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -38,10 +39,16 @@ constexpr int kBatch = 64;                 // triangles whose geometry is comput
 constexpr std::size_t kModeBlock = 16384;  // triangles per open/direct decision
 constexpr int kRecheckEvery = 16;          // direct blocks between two open ones
 
+// Records name their leaf by its cell in the bucket's cube, x | y << 10 | z << 20 (a
+// bucket is at most 2^10 leaves a side); pass 2 gives the leaves their Morton order.
+std::uint32_t pack_cell(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  return x | y << 10 | z << 20;
+}
+
 // The sums of some triangles in one leaf (an open leaf's), 28 bytes. The centroid is kept
 // as the area-weighted mean position in the leaf, in 1/65536 of its edge (15 nm at 1 mm).
 struct Record {
-  std::uint32_t cell;  // key bits below the bucket
+  std::uint32_t cell;  // pack_cell of the leaf in its bucket
   float area;          // Σ a_i
   float an[3];         // Σ a_i N_i
   std::uint16_t mean[3];
@@ -49,14 +56,44 @@ struct Record {
 };
 static_assert(sizeof(Record) == 28);
 
-// One triangle filed directly, 22 bytes: in random order one is filed per triangle, so
-// its size is the stream's (8.9 M of them). Its area is |a_i N_i|, its count 1.
-struct [[gnu::packed]] Single {
-  std::uint32_t cell;
-  float an[3];
-  std::uint16_t mean[3];
+// One triangle filed directly, 12 bytes: in random order one is filed per triangle (8.9 M
+// of them), all of it fresh memory, which is what a run pays for most on a VM.
+//  - pos: its centroid in the bucket's cube in 16-bit fixed point per axis, the leaf's
+//    cell in the top bits and the position in the leaf below (1/512 of a leaf at depth
+//    11, 2 um at 1 mm; 1/64 at the deepest tree, depth 16).
+//  - an: a_i N_i as three 13-bit mantissas sharing the exponent of the largest (block
+//    floating point, relative error <= 2^-12 of |a_i N_i|); its area is |a_i N_i|.
+struct Single {
+  std::uint16_t pos[3];
+  std::uint16_t an[3];
 };
-static_assert(sizeof(Single) == 22);
+static_assert(sizeof(Single) == 12);
+
+// a_i N_i <-> 48 bits: exponent byte, then the mantissas. Below 2^-115 m² it is zero.
+constexpr std::uint32_t kMinExponent = 12;
+void pack_an(const float an[3], std::uint16_t out[3]) {
+  const float largest = std::max({std::abs(an[0]), std::abs(an[1]), std::abs(an[2])});
+  const std::uint32_t e = std::bit_cast<std::uint32_t>(largest) >> 23;  // biased exponent
+  std::uint64_t w = 0;
+  if (e >= kMinExponent) {
+    const float scale = std::bit_cast<float>((265u - e) << 23);  // largest * scale in [2^11, 2^12)
+    w = e;
+    for (int a = 0; a < 3; ++a) {
+      const long q = std::clamp(std::lrint(an[a] * scale), -4095l, 4095l);
+      w |= (static_cast<std::uint64_t>(q) & 0x1fff) << (8 + 13 * a);
+    }
+  }
+  for (int k = 0; k < 3; ++k) out[k] = static_cast<std::uint16_t>(w >> (16 * k));
+}
+void unpack_an(const std::uint16_t in[3], float an[3]) {
+  const std::uint64_t w = in[0] | std::uint64_t{in[1]} << 16 | std::uint64_t{in[2]} << 32;
+  const auto e = static_cast<std::uint32_t>(w & 0xff);
+  const float unit = e >= kMinExponent ? std::bit_cast<float>((e - 11) << 23) : 0.0f;
+  for (int a = 0; a < 3; ++a) {
+    const auto bits = static_cast<std::uint32_t>(w >> (8 + 13 * a)) << 19;
+    an[a] = static_cast<float>(static_cast<std::int32_t>(bits) >> 19) * unit;
+  }
+}
 
 std::uint16_t quantize(float f) {  // position in the leaf, [0, 1] -> 1/65536 steps
   return static_cast<std::uint16_t>(std::clamp(f * 65536.0f + 0.5f, 0.0f, 65535.0f));
@@ -176,6 +213,10 @@ struct TriangleBatch {
 // Sums one bucket's records (from every thread's chains) into leaves, in Morton order.
 class BucketSummer {
  public:
+  // levels: the octree levels within a bucket; a Single keeps 16 - levels bits of position.
+  explicit BucketSummer(int levels)
+      : frac_bits_(16 - levels), cell_mask_((1u << levels) - 1), frac_unit_(std::ldexp(1.0f, -frac_bits_)) {}
+
   // Sums the bucket; returns the number of leaves that write() will write.
   std::size_t sum(const std::vector<std::unique_ptr<ThreadRecords>>& threads, std::size_t bucket,
                   std::uint64_t records_hint) {
@@ -189,18 +230,24 @@ class BucketSummer {
       for (const Chunk<Record>* c = t->sums.head(bucket); c; c = c->next)
         for (std::uint32_t i = 0; i < c->size; ++i) {
           const Record& r = c->records[i];
-          add(r.cell, r.count, r.area, r.an, r.mean);
+          const float mean[3] = {r.mean[0] * (1.0f / 65536.0f), r.mean[1] * (1.0f / 65536.0f),
+                                 r.mean[2] * (1.0f / 65536.0f)};
+          add(r.cell, r.count, r.area, r.an, mean);
         }
       for (const Chunk<Single>* c = t->singles.head(bucket); c; c = c->next)
         for (std::uint32_t i = 0; i < c->size; ++i) {
           const Single& r = c->records[i];
-          const float an[3] = {r.an[0], r.an[1], r.an[2]};
-          const std::uint16_t mean[3] = {r.mean[0], r.mean[1], r.mean[2]};
-          add(r.cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
+          float an[3], mean[3];
+          unpack_an(r.an, an);
+          for (int a = 0; a < 3; ++a)
+            mean[a] = (static_cast<float>(r.pos[a] & frac_mask()) + 0.5f) * frac_unit_;
+          const std::uint32_t cell =
+              pack_cell(r.pos[0] >> frac_bits_, r.pos[1] >> frac_bits_, r.pos[2] >> frac_bits_);
+          add(cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
         }
     }
     order_.resize(sums_.size());
-    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = std::uint64_t{sums_[i].cell} << 32 | i;
+    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = morton(sums_[i].cell) << 32 | i;
     std::sort(order_.begin(), order_.end());
     return sums_.size();
   }
@@ -211,7 +258,7 @@ class BucketSummer {
     for (const std::uint64_t o : order_) {
       const Sum& r = sums_[static_cast<std::uint32_t>(o)];
       OctreeLeaf& l = *out++;
-      l.key = bucket << low_bits | r.cell;
+      l.key = bucket << low_bits | o >> 32;
       l.count = r.count;
       l.area = r.area;
       l.sum_an = Eigen::Vector3f(r.an[0], r.an[1], r.an[2]);
@@ -230,8 +277,14 @@ class BucketSummer {
     float an[3] = {0, 0, 0};
     float af[3] = {0, 0, 0};
   };
-  void add(std::uint32_t cell, std::uint32_t count, float area, const float an[3],
-           const std::uint16_t mean[3]) {
+  std::uint32_t frac_mask() const { return (1u << frac_bits_) - 1; }
+  std::uint64_t morton(std::uint32_t cell) const {
+    return LinearOctree::encode({static_cast<int>(cell & cell_mask_),
+                                 static_cast<int>(cell >> 10 & cell_mask_),
+                                 static_cast<int>(cell >> 20 & cell_mask_)});
+  }
+  // mean: the triangles' mean position in the leaf (edge = 1).
+  void add(std::uint32_t cell, std::uint32_t count, float area, const float an[3], const float mean[3]) {
     const std::size_t mask = slots_.size() - 1;
     std::size_t h = static_cast<std::uint32_t>(cell * 0x9E3779B1u) >> shift_;
     while (slots_[h] >= 0 && sums_[static_cast<std::size_t>(slots_[h])].cell != cell) h = (h + 1) & mask;
@@ -242,14 +295,16 @@ class BucketSummer {
     Sum& l = sums_[static_cast<std::size_t>(slots_[h])];
     l.count += count;
     l.area += area;
-    for (int a = 0; a < 3; ++a)
-      l.an[a] += an[a], l.af[a] += area * (static_cast<float>(mean[a]) * (1.0f / 65536.0f));
+    for (int a = 0; a < 3; ++a) l.an[a] += an[a], l.af[a] += area * mean[a];
   }
 
+  const int frac_bits_;
+  const std::uint32_t cell_mask_;
+  const float frac_unit_;
   int shift_ = 32;
   std::vector<std::int32_t> slots_;
   std::vector<Sum> sums_;             // one per leaf, in order of first appearance
-  std::vector<std::uint64_t> order_;  // cell << 32 | index into sums_
+  std::vector<std::uint64_t> order_;  // Morton code in the bucket << 32 | index into sums_
 };
 
 int thread_count() {
@@ -272,7 +327,12 @@ int thread_id() {
 class LeafFiler {
  public:
   LeafFiler(const LeafGrid& grid, int low_bits, ThreadRecords& store)
-      : grid_(grid), low_bits_(low_bits), low_mask_((std::uint64_t{1} << low_bits) - 1), store_(store) {}
+      : grid_(grid),
+        low_bits_(low_bits),
+        cell_mask_((1 << low_bits / 3) - 1),
+        frac_bits_(16 - low_bits / 3),
+        frac_scale_(std::ldexp(1.0f, frac_bits_)),
+        store_(store) {}
 
   void run(const ingest::MeshView& mesh, std::size_t b, std::size_t e) {
     TriangleBatch batch;
@@ -347,17 +407,22 @@ class LeafFiler {
 
   // Random order: one record per triangle.
   void file_each(const TriangleBatch& t, int m) {
+    const int frac_max = (1 << frac_bits_) - 1;
     for (int j = 0; j < m; ++j) {
-      const std::uint64_t key = key_of(t, j);
-      Single& r = store_.singles.append(key >> low_bits_);
-      r.cell = static_cast<std::uint32_t>(key & low_mask_);
-      for (int k = 0; k < 3; ++k) r.an[k] = t.an[k][j], r.mean[k] = quantize(t.f[k][j]);
+      Single& r = store_.singles.append(key_of(t, j) >> low_bits_);
+      const float an[3] = {t.an[0][j], t.an[1][j], t.an[2][j]};
+      pack_an(an, r.an);
+      for (int a = 0; a < 3; ++a) {
+        const int frac = std::clamp(static_cast<int>(t.f[a][j] * frac_scale_), 0, frac_max);
+        r.pos[a] = static_cast<std::uint16_t>((t.cell[a][j] & cell_mask_) << frac_bits_ | frac);
+      }
     }
   }
 
   void file(const OpenLeaf& l) {
     Record& r = store_.sums.append(l.key >> low_bits_);
-    r.cell = static_cast<std::uint32_t>(l.key & low_mask_);
+    const Eigen::Vector3i cell = LinearOctree::decode(l.key);
+    r.cell = pack_cell(cell.x() & cell_mask_, cell.y() & cell_mask_, cell.z() & cell_mask_);
     r.area = l.area;
     for (int k = 0; k < 3; ++k)
       r.an[k] = l.an[k], r.mean[k] = quantize(l.area > 0.0f ? l.af[k] / l.area : 0.5f);
@@ -366,7 +431,9 @@ class LeafFiler {
 
   const LeafGrid& grid_;
   const int low_bits_;
-  const std::uint64_t low_mask_;
+  const int cell_mask_;  // a cell's coordinates in its bucket
+  const int frac_bits_;  // Single::pos bits below the cell
+  const float frac_scale_;
   ThreadRecords& store_;
   // Open leaves, direct-mapped by key.
   std::vector<OpenLeaf> open_ = std::vector<OpenLeaf>(kOpenLeaves);
@@ -381,7 +448,7 @@ class LeafFiler {
 OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
                                std::size_t* record_bytes) {
   const std::size_t n = mesh.triangle_count();
-  // At least depth - 10 bucket levels, so that a record's cell (the bits below) fits 32 bits.
+  // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side (pack_cell).
   const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
   const int low_bits = 3 * (grid.depth - bucket_levels);
   const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
@@ -428,7 +495,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
                                       start.begin());
     };
     const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
-    BucketSummer summer;
+    BucketSummer summer(low_bits / 3);
     if (t % 2 == 0) {
       std::size_t cursor = start[ke];
       for (std::size_t k = ke; k-- > kb;) {
