@@ -38,8 +38,8 @@ bool prepare_heap_for_big_jobs() {
   mallopt(M_ARENA_MAX, 1);
   mallopt(M_MMAP_MAX, 0);
   mallopt(M_TRIM_THRESHOLD, INT_MAX);
-  const char* off = std::getenv("DENTMARK_HUGEPAGES");
-  if (off && std::strcmp(off, "0") == 0) return false;
+  const char* on = std::getenv("DENTMARK_HUGEPAGES");
+  if (!on || std::strcmp(on, "1") != 0) return false;
   // Grow the heap by kReserve of untouched address space and give it back to the
   // allocator: it stays the heap's top (no trimming), and every later block is cut
   // from it, inside the range marked for huge pages.
