@@ -1,6 +1,7 @@
 // PLY (Turk 1994): ascii, binary_little_endian, binary_big_endian. Vertex x, y, z as
 // any scalar type; faces as a list of indices (any integer count/index types); every
 // other element and property is skipped.
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -189,6 +190,11 @@ PlyHeader parse_header(const std::string& path, std::string_view bytes) {
       e.name = std::string(hdr.word());
       const long long n = hdr.integer("element count");
       if (n < 0) hdr.fail("negative element count");
+      // Faces index the vertices read before them: a second vertex list would leave
+      // them pointing into the wrong one (or past its end).
+      if (e.name == "vertex" &&
+          std::any_of(elements.begin(), elements.end(), [](const Element& o) { return o.name == "vertex"; }))
+        hdr.fail("a second 'vertex' element");
       e.count = static_cast<std::uint64_t>(n);
       elements.push_back(std::move(e));
     } else if (key == "property") {

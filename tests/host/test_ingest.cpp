@@ -220,6 +220,12 @@ TEST(Ingest, ErrorsNameFileAndPosition) {
   EXPECT_NE(message("j.ply", b.substr(0, b.size() - 5)).find("byte"), std::string::npos);
   EXPECT_NE(message("k.stl", "hello").find("byte 0"), std::string::npos);
   EXPECT_NE(message("l.ply", "").find("empty"), std::string::npos);
+  // Found by the fuzzer: faces read against a first vertex list, then a shorter second one.
+  std::string two_lists = ascii_ply();
+  two_lists.replace(two_lists.find("element face"), 0,
+                    "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n");
+  two_lists.replace(two_lists.find("4 0 1 2 3"), 0, "0 0 0\n");
+  EXPECT_NE(message("m.ply", two_lists).find("line 9: a second 'vertex' element"), std::string::npos);
   EXPECT_THROW(read_mesh(temp_path("missing.ply")), IngestError);
 }
 
