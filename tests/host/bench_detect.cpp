@@ -2,12 +2,17 @@
 //   BM_Detect/<shuffled>:  detection alone on a ~9 M-triangle, 0.39 mm door scan
 //                           (items/s = triangles/s), triangles in sensor or random order.
 //   BM_ReadDetectWrite:     binary PLY read + detection + JSON write, the whole job.
+//   BM_BoxMean/<k>:         the deviation's windowed mean on a door-sized map (1300 x 1000
+//                           pixels, k x k windows; items/s = pixels/s).
 //   BM_QualityOverSeeds:    recall / false alarms / errors over many seeds (counters).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
 #include <memory>
+#include <opencv2/core.hpp>
+#include <random>
 
+#include "../../host/detect/box_mean.h"
 #include "dentmark/common/huge_pages.h"
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/detect/linear_octree.h"
@@ -98,6 +103,24 @@ void BM_ReadDetectWrite(benchmark::State& state) {
   std::filesystem::remove(ply);
   std::filesystem::remove(json);
 }
+void BM_BoxMean(benchmark::State& state) {
+  const int k = static_cast<int>(state.range(0));
+  cv::Mat values(1000, 1300, CV_32F), weights(values.size(), CV_32F), out;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int r = 0; r < values.rows; ++r)
+    for (int c = 0; c < values.cols; ++c) {
+      const float w = u(rng) < 0.05f ? 0.0f : u(rng);  // a few pixels unseen
+      weights.at<float>(r, c) = w, values.at<float>(r, c) = w * 1e-5f * (u(rng) - 0.5f);
+    }
+  for (auto _ : state) {
+    detect::box_mean(values, weights, k, 0.3f * static_cast<float>(k * k), out);
+    benchmark::DoNotOptimize(out.data);
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(values.total()));
+}
+BENCHMARK(BM_BoxMean)->Arg(3)->Arg(7)->Arg(15)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 BENCHMARK(BM_ReadDetectWrite)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 void BM_QualityOverSeeds(benchmark::State& state) {
