@@ -15,6 +15,9 @@ inline int omp_get_num_threads() {
 inline int omp_get_thread_num() {
   return 0;
 }
+inline int omp_get_max_threads() {
+  return 1;
+}
 #endif
 
 namespace dentmark::detect {
@@ -105,49 +108,63 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   std::vector<float> front(n, -std::numeric_limits<float>::infinity());
   for (std::size_t i = 0; i < leaves.size(); ++i)
     if (pix[i] >= 0) front[pix[i]] = std::max(front[pix[i]], q[i].z());
-  // Area-weighted sums per pixel, straight into the map's arrays (a pixel holds one or two
-  // leaves: float sums lose nothing), then divided in place.
   // Each thread owns a band of pixel rows and reads every leaf, so each pixel is summed
   // in leaf order by one thread (the same sums as one thread's).
-  map.weight.assign(n, 0.0f);
-  map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
-  std::vector<Eigen::Vector3f> sn(n, Eigen::Vector3f::Zero());
   const auto layer = static_cast<float>(layer_depth);
-  std::vector<std::vector<Eigen::Vector3f>> behind;
+  std::vector<std::vector<Eigen::Vector3f>> behind(static_cast<std::size_t>(omp_get_max_threads()));
+  // visit(thread, leaf, pixel, in_front) for every leaf on the map.
+  const auto for_leaves_by_band = [&](auto&& visit) {
 #pragma omp parallel
-  {
-#pragma omp single
-    behind.resize(static_cast<std::size_t>(omp_get_num_threads()));
-    const auto t = static_cast<std::size_t>(omp_get_thread_num());
-    const auto bands = static_cast<std::int64_t>(behind.size());
-    const auto first =
-        static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t) / bands);
-    const auto last =
-        static_cast<std::int32_t>(static_cast<std::int64_t>(n) * static_cast<std::int64_t>(t + 1) / bands);
-    for (std::size_t i = 0; i < leaves.size(); ++i) {
-      const std::int32_t k = pix[i];
-      if (k < first || k >= last) continue;  // also -1
-      if (q[i].z() < front[k] - layer) {
-        behind[t].push_back(q[i]);
-        continue;
+    {
+      const auto t = static_cast<std::int64_t>(omp_get_thread_num());
+      const auto bands = static_cast<std::int64_t>(omp_get_num_threads());
+      const auto first = static_cast<std::int32_t>(static_cast<std::int64_t>(n) * t / bands);
+      const auto last = static_cast<std::int32_t>(static_cast<std::int64_t>(n) * (t + 1) / bands);
+      for (std::size_t i = 0; i < leaves.size(); ++i) {
+        const std::int32_t k = pix[i];
+        if (k >= first && k < last) visit(static_cast<std::size_t>(t), i, k, q[i].z() >= front[k] - layer);
       }
-      const float a = leaves[i].area;
-      map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
-      sn[k] += leaves[i].sum_an;
     }
-  }
-  for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());
+  };
+  // The tilt first: |S . w| / |S| per pixel, S = Σ a_i N_i of its leaves, summed in the
+  // map's frame in the arrays that then take the positions (no fourth array of vectors).
+  map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
+  const Eigen::Matrix3f axes = map.axes.cast<float>();
+  for_leaves_by_band([&](std::size_t, std::size_t i, std::int32_t k, bool in_front) {
+    if (!in_front) return;
+    const Eigen::Vector3f s = axes * leaves[i].sum_an;
+    map.u[k] += s.x(), map.v[k] += s.y(), map.w[k] += s.z();
+  });
   map.cos_tilt.assign(n, 1.0f);
-  const Eigen::Vector3f wf = w.cast<float>();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
+    const float nn = Eigen::Vector3f(map.u[k], map.v[k], map.w[k]).norm();
+    if (nn > 0) map.cos_tilt[k] = std::abs(map.w[k]) / nn;
+    map.u[k] = 0.0f, map.v[k] = 0.0f, map.w[k] = 0.0f;
+  }
+  // Area-weighted positions per pixel, straight into the map's arrays (a pixel holds one
+  // or two leaves: float sums lose nothing), then divided in place. Leaves behind the
+  // front are kept aside.
+  map.weight.assign(n, 0.0f);
+  for_leaves_by_band([&](std::size_t t, std::size_t i, std::int32_t k, bool in_front) {
+    if (!in_front) {
+      behind[t].push_back(q[i]);
+      return;
+    }
+    const float a = leaves[i].area;
+    map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
+  });
+  for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());
   const auto inv_px2 = static_cast<float>(1.0 / (pixel * pixel));
 #pragma omp parallel for schedule(static)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
     const float a = map.weight[k];
-    if (!(a > 0.0f)) continue;
+    if (!(a > 0.0f)) {
+      map.cos_tilt[k] = 1.0f;
+      continue;
+    }
     map.u[k] /= a, map.v[k] /= a, map.w[k] /= a;
     map.weight[k] = a * inv_px2;
-    const float nn = sn[k].norm();
-    map.cos_tilt[k] = nn > 0 ? std::abs(sn[k].dot(wf)) / nn : 1.0f;
   }
   return map;
 }
