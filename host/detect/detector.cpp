@@ -122,9 +122,9 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       if (const long k = map.pixel_of(q.x(), q.y()); k >= 0) group_pixels.push_back(k);
     }
   // Working memory: the octree's leaves and the records of its build; the map's arrays and
-  // deviation images; the map's build (per leaf: pixel; per pixel: front and normal sum).
+  // deviation images; the map's build (per leaf: pixel; per pixel: front).
   st.working_bytes =
-      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 16;
+      tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 4;
   tree_ptr.reset();
   cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
   cv::Mat occupied = weight > 0.0f;
