@@ -159,10 +159,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
 #pragma omp parallel for schedule(static)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
     const float a = map.weight[k];
-    if (!(a > 0.0f)) {
-      map.cos_tilt[k] = 1.0f;
-      continue;
-    }
+    if (!(a > 0.0f)) continue;  // no leaf: its tilt sums are 0 too, so cos_tilt is 1
     map.u[k] /= a, map.v[k] /= a, map.w[k] /= a;
     map.weight[k] = a * inv_px2;
   }

@@ -95,6 +95,27 @@ void unpack_an(const std::uint16_t in[3], float an[3]) {
   }
 }
 
+// A cell's place in its bucket's cube and a position in the cell, one 16-bit code per
+// axis: the cell's `levels` bits on top, the position in the cell below.
+struct PositionCode {
+  explicit PositionCode(int levels)
+      : cell_mask((1u << levels) - 1), frac_bits(16 - levels), frac_scale(std::ldexp(1.0f, frac_bits)) {}
+  // cell: the leaf's coordinate on the axis; f: the position in it (edge = 1, clamped).
+  std::uint16_t encode(std::int32_t cell, float f) const {
+    const int frac = std::clamp(static_cast<int>(f * frac_scale), 0, (1 << frac_bits) - 1);
+    return static_cast<std::uint16_t>((static_cast<std::uint32_t>(cell) & cell_mask) << frac_bits |
+                                      static_cast<std::uint32_t>(frac));
+  }
+  std::uint32_t cell(std::uint16_t code) const { return code >> frac_bits; }
+  float position(std::uint16_t code) const {  // the middle of the code's step
+    return (static_cast<float>(code & ((1u << frac_bits) - 1)) + 0.5f) / frac_scale;
+  }
+
+  const std::uint32_t cell_mask;
+  const int frac_bits;
+  const float frac_scale;
+};
+
 std::uint16_t quantize(float f) {  // position in the leaf, [0, 1] -> 1/65536 steps
   return static_cast<std::uint16_t>(std::clamp(f * 65536.0f + 0.5f, 0.0f, 65535.0f));
 }
@@ -213,9 +234,7 @@ struct TriangleBatch {
 // Sums one bucket's records (from every thread's chains) into leaves, in Morton order.
 class BucketSummer {
  public:
-  // levels: the octree levels within a bucket; a Single keeps 16 - levels bits of position.
-  explicit BucketSummer(int levels)
-      : frac_bits_(16 - levels), cell_mask_((1u << levels) - 1), frac_unit_(std::ldexp(1.0f, -frac_bits_)) {}
+  explicit BucketSummer(const PositionCode& code) : code_(code) {}
 
   // Sums the bucket; returns the number of leaves that write() will write.
   std::size_t sum(const std::vector<std::unique_ptr<ThreadRecords>>& threads, std::size_t bucket,
@@ -239,10 +258,9 @@ class BucketSummer {
           const Single& r = c->records[i];
           float an[3], mean[3];
           unpack_an(r.an, an);
-          for (int a = 0; a < 3; ++a)
-            mean[a] = (static_cast<float>(r.pos[a] & frac_mask()) + 0.5f) * frac_unit_;
+          for (int a = 0; a < 3; ++a) mean[a] = code_.position(r.pos[a]);
           const std::uint32_t cell =
-              pack_cell(r.pos[0] >> frac_bits_, r.pos[1] >> frac_bits_, r.pos[2] >> frac_bits_);
+              pack_cell(code_.cell(r.pos[0]), code_.cell(r.pos[1]), code_.cell(r.pos[2]));
           add(cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
         }
     }
@@ -277,11 +295,10 @@ class BucketSummer {
     float an[3] = {0, 0, 0};
     float af[3] = {0, 0, 0};
   };
-  std::uint32_t frac_mask() const { return (1u << frac_bits_) - 1; }
   std::uint64_t morton(std::uint32_t cell) const {
-    return LinearOctree::encode({static_cast<int>(cell & cell_mask_),
-                                 static_cast<int>(cell >> 10 & cell_mask_),
-                                 static_cast<int>(cell >> 20 & cell_mask_)});
+    const std::uint32_t m = code_.cell_mask;
+    return LinearOctree::encode(
+        {static_cast<int>(cell & m), static_cast<int>(cell >> 10 & m), static_cast<int>(cell >> 20 & m)});
   }
   // mean: the triangles' mean position in the leaf (edge = 1).
   void add(std::uint32_t cell, std::uint32_t count, float area, const float an[3], const float mean[3]) {
@@ -298,9 +315,7 @@ class BucketSummer {
     for (int a = 0; a < 3; ++a) l.an[a] += an[a], l.af[a] += area * mean[a];
   }
 
-  const int frac_bits_;
-  const std::uint32_t cell_mask_;
-  const float frac_unit_;
+  const PositionCode code_;
   int shift_ = 32;
   std::vector<std::int32_t> slots_;
   std::vector<Sum> sums_;             // one per leaf, in order of first appearance
@@ -327,12 +342,7 @@ int thread_id() {
 class LeafFiler {
  public:
   LeafFiler(const LeafGrid& grid, int low_bits, ThreadRecords& store)
-      : grid_(grid),
-        low_bits_(low_bits),
-        cell_mask_((1 << low_bits / 3) - 1),
-        frac_bits_(16 - low_bits / 3),
-        frac_scale_(std::ldexp(1.0f, frac_bits_)),
-        store_(store) {}
+      : grid_(grid), low_bits_(low_bits), code_(low_bits / 3), store_(store) {}
 
   void run(const ingest::MeshView& mesh, std::size_t b, std::size_t e) {
     TriangleBatch batch;
@@ -407,22 +417,19 @@ class LeafFiler {
 
   // Random order: one record per triangle.
   void file_each(const TriangleBatch& t, int m) {
-    const int frac_max = (1 << frac_bits_) - 1;
     for (int j = 0; j < m; ++j) {
       Single& r = store_.singles.append(key_of(t, j) >> low_bits_);
       const float an[3] = {t.an[0][j], t.an[1][j], t.an[2][j]};
       pack_an(an, r.an);
-      for (int a = 0; a < 3; ++a) {
-        const int frac = std::clamp(static_cast<int>(t.f[a][j] * frac_scale_), 0, frac_max);
-        r.pos[a] = static_cast<std::uint16_t>((t.cell[a][j] & cell_mask_) << frac_bits_ | frac);
-      }
+      for (int a = 0; a < 3; ++a) r.pos[a] = code_.encode(t.cell[a][j], t.f[a][j]);
     }
   }
 
   void file(const OpenLeaf& l) {
     Record& r = store_.sums.append(l.key >> low_bits_);
     const Eigen::Vector3i cell = LinearOctree::decode(l.key);
-    r.cell = pack_cell(cell.x() & cell_mask_, cell.y() & cell_mask_, cell.z() & cell_mask_);
+    const std::uint32_t m = code_.cell_mask;
+    r.cell = pack_cell(cell.x() & m, cell.y() & m, cell.z() & m);
     r.area = l.area;
     for (int k = 0; k < 3; ++k)
       r.an[k] = l.an[k], r.mean[k] = quantize(l.area > 0.0f ? l.af[k] / l.area : 0.5f);
@@ -431,9 +438,7 @@ class LeafFiler {
 
   const LeafGrid& grid_;
   const int low_bits_;
-  const int cell_mask_;  // a cell's coordinates in its bucket
-  const int frac_bits_;  // Single::pos bits below the cell
-  const float frac_scale_;
+  const PositionCode code_;  // Single::pos
   ThreadRecords& store_;
   // Open leaves, direct-mapped by key.
   std::vector<OpenLeaf> open_ = std::vector<OpenLeaf>(kOpenLeaves);
@@ -495,7 +500,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
                                       start.begin());
     };
     const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
-    BucketSummer summer(low_bits / 3);
+    BucketSummer summer{PositionCode(low_bits / 3)};
     if (t % 2 == 0) {
       std::size_t cursor = start[ke];
       for (std::size_t k = ke; k-- > kb;) {
