@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -28,6 +29,12 @@ namespace {
 // (1.25 M for 8.9 M triangles). In random order the open leaves are never met again and
 // only cost a cache miss each: blocks whose triangles mostly miss them switch to filing
 // every triangle directly, and every 16th block looks again.
+//
+// The triangles are taken in slices, each by whichever thread is free (threads run at
+// uneven speeds on a shared machine: a fixed half each left one waiting 40 ms). A slice's
+// records depend only on its triangles (its open leaves start empty and are filed at its
+// end), and pass 2 sums each bucket's records in slice order, so the leaves are the same
+// to the last bit whichever thread took which slice, and with any number of threads.
 //
 // Tried and measured slower: one hash table of leaves shared by the threads instead of
 // records (0.37 -> 0.51 s in sensor order, no gain in random order: its random slot
@@ -132,11 +139,19 @@ struct OpenLeaf {
   float af[3] = {0, 0, 0};  // Σ a_i f_i, f_i the centroid's position in the leaf (edge = 1)
 };
 
+// Triangles per slice: a function of the triangle count alone (the leaves must not depend
+// on the thread count); ~32 slices, but not so small that filing their last open leaves
+// and starting fresh chunks costs, nor so large that a thread waits long for another.
+std::size_t slice_size(std::size_t triangles) {
+  return std::clamp<std::size_t>(triangles / 32, std::size_t{1} << 16, std::size_t{1} << 20);
+}
+
 template <typename R>
 struct Chunk {
   static constexpr std::uint32_t kCapacity = (kChunkBytes - 16) / sizeof(R);
   Chunk* next = nullptr;
   std::uint32_t size = 0;
+  std::uint32_t slice = 0;  // a chunk holds records of one slice
   R records[kCapacity];
 };
 
@@ -146,9 +161,12 @@ class ChunkStore {
  public:
   explicit ChunkStore(std::size_t buckets) : head_(buckets, nullptr), tail_(buckets) {}
 
+  // Records appended from now on belong to this slice (slices come in increasing order).
+  void begin_slice(std::uint32_t slice) { slice_ = slice; }
+
   R& append(std::size_t bucket) {
     Tail& t = tail_[bucket];
-    if (!t.chunk || t.chunk->size == Chunk<R>::kCapacity) {
+    if (!t.chunk || t.chunk->size == Chunk<R>::kCapacity || t.chunk->slice != slice_) {
       Chunk<R>* fresh = allocate();
       (t.chunk ? t.chunk->next : head_[bucket]) = fresh;
       t.chunk = fresh;
@@ -173,7 +191,9 @@ class ChunkStore {
       blocks_.emplace_back(static_cast<Chunk<R>*>(p));
       used_ = 0;
     }
-    return new (&blocks_.back().get()[used_++]) Chunk<R>;
+    auto* chunk = new (&blocks_.back().get()[used_++]) Chunk<R>;
+    chunk->slice = slice_;
+    return chunk;
   }
   struct Free {
     void operator()(Chunk<R>* p) const { std::free(p); }
@@ -187,11 +207,13 @@ class ChunkStore {
   std::vector<Tail> tail_;
   std::vector<std::unique_ptr<Chunk<R>, Free>> blocks_;
   std::size_t used_ = 0;
+  std::uint32_t slice_ = 0;
 };
 
 // What one thread files in pass 1.
 struct ThreadRecords {
   explicit ThreadRecords(std::size_t buckets) : sums(buckets), singles(buckets) {}
+  void begin_slice(std::uint32_t slice) { sums.begin_slice(slice), singles.begin_slice(slice); }
   ChunkStore<Record> sums;
   ChunkStore<Single> singles;
 };
@@ -245,25 +267,23 @@ class BucketSummer {
     for (std::size_t s = size; s > 1; s >>= 1) --shift_;
     slots_.assign(size, -1);
     sums_.clear();
-    for (const auto& t : threads) {
-      for (const Chunk<Record>* c = t->sums.head(bucket); c; c = c->next)
-        for (std::uint32_t i = 0; i < c->size; ++i) {
-          const Record& r = c->records[i];
-          const float mean[3] = {r.mean[0] * (1.0f / 65536.0f), r.mean[1] * (1.0f / 65536.0f),
-                                 r.mean[2] * (1.0f / 65536.0f)};
-          add(r.cell, r.count, r.area, r.an, mean);
-        }
-      for (const Chunk<Single>* c = t->singles.head(bucket); c; c = c->next)
-        for (std::uint32_t i = 0; i < c->size; ++i) {
-          const Single& r = c->records[i];
-          float an[3], mean[3];
-          unpack_an(r.an, an);
-          for (int a = 0; a < 3; ++a) mean[a] = code_.position(r.pos[a]);
-          const std::uint32_t cell =
-              pack_cell(code_.cell(r.pos[0]), code_.cell(r.pos[1]), code_.cell(r.pos[2]));
-          add(cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
-        }
-    }
+    for (const Chunk<Record>* c : in_slice_order(threads, &ThreadRecords::sums, bucket, record_chunks_))
+      for (std::uint32_t i = 0; i < c->size; ++i) {
+        const Record& r = c->records[i];
+        const float mean[3] = {r.mean[0] * (1.0f / 65536.0f), r.mean[1] * (1.0f / 65536.0f),
+                               r.mean[2] * (1.0f / 65536.0f)};
+        add(r.cell, r.count, r.area, r.an, mean);
+      }
+    for (const Chunk<Single>* c : in_slice_order(threads, &ThreadRecords::singles, bucket, single_chunks_))
+      for (std::uint32_t i = 0; i < c->size; ++i) {
+        const Single& r = c->records[i];
+        float an[3], mean[3];
+        unpack_an(r.an, an);
+        for (int a = 0; a < 3; ++a) mean[a] = code_.position(r.pos[a]);
+        const std::uint32_t cell =
+            pack_cell(code_.cell(r.pos[0]), code_.cell(r.pos[1]), code_.cell(r.pos[2]));
+        add(cell, 1, std::sqrt(an[0] * an[0] + an[1] * an[1] + an[2] * an[2]), an, mean);
+      }
     order_.resize(sums_.size());
     for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = morton(sums_[i].cell) << 32 | i;
     std::sort(order_.begin(), order_.end());
@@ -288,6 +308,22 @@ class BucketSummer {
   }
 
  private:
+  // The bucket's chunks of one kind from every thread, in slice order: float sums then
+  // come out the same whichever thread filed which slice. A thread's chain is in slice
+  // order already, and a slice is one thread's, so a stable merge by slice is enough.
+  template <typename R>
+  static const std::vector<const Chunk<R>*>& in_slice_order(
+      const std::vector<std::unique_ptr<ThreadRecords>>& threads, ChunkStore<R> ThreadRecords::*kind,
+      std::size_t bucket, std::vector<const Chunk<R>*>& chunks) {
+    chunks.clear();
+    for (const auto& t : threads)
+      for (const Chunk<R>* c = ((*t).*kind).head(bucket); c; c = c->next) chunks.push_back(c);
+    if (threads.size() > 1)
+      std::stable_sort(chunks.begin(), chunks.end(),
+                       [](const Chunk<R>* a, const Chunk<R>* b) { return a->slice < b->slice; });
+    return chunks;
+  }
+
   struct Sum {
     std::uint32_t cell;
     std::uint32_t count = 0;
@@ -320,6 +356,8 @@ class BucketSummer {
   std::vector<std::int32_t> slots_;
   std::vector<Sum> sums_;             // one per leaf, in order of first appearance
   std::vector<std::uint64_t> order_;  // Morton code in the bucket << 32 | index into sums_
+  std::vector<const Chunk<Record>*> record_chunks_;
+  std::vector<const Chunk<Single>*> single_chunks_;
 };
 
 int thread_count() {
@@ -344,7 +382,11 @@ class LeafFiler {
   LeafFiler(const LeafGrid& grid, int low_bits, ThreadRecords& store)
       : grid_(grid), low_bits_(low_bits), code_(low_bits / 3), store_(store) {}
 
-  void run(const ingest::MeshView& mesh, std::size_t b, std::size_t e) {
+  // Files the triangles [b, e) of one slice; its open leaves start empty and are filed at
+  // its end, so what it files depends on nothing else.
+  void run_slice(const ingest::MeshView& mesh, std::uint32_t slice, std::size_t b, std::size_t e) {
+    store_.begin_slice(slice);
+    direct_ = false;
     TriangleBatch batch;
     int blocks_direct = 0;  // direct blocks since the last open one
     for (std::size_t block = b; block < e; block += kModeBlock) {
@@ -365,8 +407,12 @@ class LeafFiler {
         direct_ = 2 * misses_ > block_end - block;
       }
     }
-    for (const OpenLeaf& l : open_)
+    for (OpenLeaf& l : open_) {
       if (l.count > 0) file(l);
+      l = OpenLeaf{};
+    }
+    last_ = &open_[0];
+    last_cell_ = Eigen::Vector3i::Constant(-1);
   }
 
  private:
@@ -460,14 +506,16 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   const int threads = thread_count();
   std::vector<std::unique_ptr<ThreadRecords>> stores(static_cast<std::size_t>(threads));
 
-  // Pass 1: each thread files its slice of the triangles.
+  // Pass 1: the threads file slices of the triangles, each taking the next one left.
+  const std::size_t slice = slice_size(n), slices = (n + slice - 1) / slice;
+  std::atomic<std::size_t> next_slice{0};
 #pragma omp parallel num_threads(threads)
   {
     const auto t = static_cast<std::size_t>(thread_id());
-    const std::size_t b = n * t / static_cast<std::size_t>(threads),
-                      e = n * (t + 1) / static_cast<std::size_t>(threads);
     stores[t] = std::make_unique<ThreadRecords>(buckets);
-    LeafFiler(grid, low_bits, *stores[t]).run(mesh, b, e);
+    LeafFiler filer(grid, low_bits, *stores[t]);
+    for (std::size_t s; (s = next_slice.fetch_add(1, std::memory_order_relaxed)) < slices;)
+      filer.run_slice(mesh, static_cast<std::uint32_t>(s), s * slice, std::min(n, (s + 1) * slice));
   }
 
   // Pass 2: buckets in key order, split between threads by record count. A bucket has at
@@ -495,8 +543,8 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   {
     const auto t = static_cast<std::size_t>(thread_id());
     const auto nt = static_cast<std::size_t>(threads);
-    const auto first_bucket = [&](std::size_t slice) {
-      return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * slice / nt) -
+    const auto first_bucket = [&](std::size_t part) {
+      return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * part / nt) -
                                       start.begin());
     };
     const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
