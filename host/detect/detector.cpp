@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "box_mean.h"
+#include "components.h"
 #include "dentmark/common/geometry/plane_fit.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
@@ -131,18 +132,13 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   // Outside: empty regions larger than a (10 mm)² dropout or touching the map border.
   cv::Mat edge_zone;
   {
-    cv::Mat empty = weight <= 0.0f, lab, stats, cent;
-    const int n = cv::connectedComponentsWithStats(empty, lab, stats, cent, 4, CV_32S);
+    const Components empty = label_components(weight <= 0.0f, 4);
     const double big = std::pow(0.01 / h, 2);
-    std::vector<std::uint8_t> outside(static_cast<std::size_t>(n), 0);
-    for (int i = 1; i < n; ++i) {
-      const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
-      const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), hh = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-      outside[static_cast<std::size_t>(i)] =
-          stats.at<int>(i, cv::CC_STAT_AREA) >= big || x == 0 || y == 0 || x + w == cols || y + hh == rows;
-    }
+    std::vector<std::uint8_t> outside(static_cast<std::size_t>(empty.count), 0);
+    for (std::size_t i = 1; i < outside.size(); ++i)
+      outside[i] = empty.area[i] >= big || empty.touches_border[i];
     cv::Mat out_mask(rows, cols, CV_8U);
-    const int* lp = lab.ptr<int>();  // 0 on occupied pixels, which outside[0] = 0 leaves out
+    const int* lp = empty.labels.ptr<int>();  // 0 on occupied pixels, which outside[0] = 0 leaves out
     std::uint8_t* op = out_mask.ptr<std::uint8_t>();
 #pragma omp parallel for schedule(static)
     for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)

@@ -6,6 +6,8 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
+#include "components.h"
+
 namespace dentmark::detect {
 
 std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviation,
@@ -14,10 +16,10 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
   const cv::Mat deep = deviation < static_cast<float>(-behind_depth);  // NaN compares false
   const cv::Mat region = (weight <= 0.0f) | deep;
-  cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(region, labels, stats, centroids, 8, CV_32S);
+  const Components regions = label_components(region, 8);
+  const int n = regions.count;
   const double px_area = map.pixel * map.pixel;
-  const int* lab = labels.ptr<int>();
+  const int* lab = regions.labels.ptr<int>();
   const float* dev = deviation.ptr<float>();
 
   // Candidates: enclosed, small enough. Their pixels are gathered once they have the
@@ -25,15 +27,13 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   std::vector<int> index(static_cast<std::size_t>(n), -1);
   std::vector<HoleRegion> cand;
   std::vector<int> cand_area;
-  for (int i = 1; i < n; ++i) {
-    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
-    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-    if (x == 0 || y == 0 || x + w == cols || y + h == rows) continue;
-    const double d = 2.0 * std::sqrt(stats.at<int>(i, cv::CC_STAT_AREA) * px_area / std::numbers::pi);
+  for (std::size_t i = 1; i < index.size(); ++i) {
+    if (regions.touches_border[i]) continue;
+    const double d = 2.0 * std::sqrt(regions.area[i] * px_area / std::numbers::pi);
     if (d > max_diameter) continue;
-    index[static_cast<std::size_t>(i)] = static_cast<int>(cand.size());
+    index[i] = static_cast<int>(cand.size());
     cand.push_back({{}, 0, d, 0.0, {}});
-    cand_area.push_back(stats.at<int>(i, cv::CC_STAT_AREA));
+    cand_area.push_back(regions.area[i]);
   }
   if (cand.empty()) return {};
 
