@@ -9,6 +9,7 @@
 #include <cstring>
 #include <memory>
 #include <new>
+#include <utility>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -286,7 +287,7 @@ class BucketSummer {
       }
     order_.resize(sums_.size());
     for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = morton(sums_[i].cell) << 32 | i;
-    std::sort(order_.begin(), order_.end());
+    sort_by_morton();
     return sums_.size();
   }
 
@@ -308,6 +309,29 @@ class BucketSummer {
   }
 
  private:
+  // order_ by its Morton codes (distinct: one per leaf), least significant digit first:
+  // two or three passes of at most 11 bits over a bucket's thousands of leaves, a third
+  // of the time std::sort took.
+  void sort_by_morton() {
+    if (order_.size() < 64) {
+      std::sort(order_.begin(), order_.end());
+      return;
+    }
+    const int bits = 3 * std::popcount(code_.cell_mask);
+    const int passes = (bits + 10) / 11, digit = (bits + passes - 1) / passes;
+    const std::uint64_t mask = (std::uint64_t{1} << digit) - 1;
+    spare_.resize(order_.size());
+    for (int p = 0; p < passes; ++p) {
+      const int shift = 32 + p * digit;
+      histogram_.assign(std::size_t{1} << digit, 0);
+      for (const std::uint64_t o : order_) ++histogram_[o >> shift & mask];
+      std::uint32_t sum = 0;
+      for (std::uint32_t& h : histogram_) sum += std::exchange(h, sum);
+      for (const std::uint64_t o : order_) spare_[histogram_[o >> shift & mask]++] = o;
+      order_.swap(spare_);
+    }
+  }
+
   // The bucket's chunks of one kind from every thread, in slice order: float sums then
   // come out the same whichever thread filed which slice. A thread's chain is in slice
   // order already, and a slice is one thread's, so a stable merge by slice is enough.
@@ -354,8 +378,10 @@ class BucketSummer {
   const PositionCode code_;
   int shift_ = 32;
   std::vector<std::int32_t> slots_;
-  std::vector<Sum> sums_;             // one per leaf, in order of first appearance
-  std::vector<std::uint64_t> order_;  // Morton code in the bucket << 32 | index into sums_
+  std::vector<Sum> sums_;                 // one per leaf, in order of first appearance
+  std::vector<std::uint64_t> order_;      // Morton code in the bucket << 32 | index into sums_
+  std::vector<std::uint64_t> spare_;      // sort_by_morton's other buffer
+  std::vector<std::uint32_t> histogram_;  // and its digit counts
   std::vector<const Chunk<Record>*> record_chunks_;
   std::vector<const Chunk<Single>*> single_chunks_;
 };
