@@ -20,7 +20,6 @@
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/detect/reference_surface.h"
-#include "components.h"
 #include "holes.h"
 #include "median.h"
 
