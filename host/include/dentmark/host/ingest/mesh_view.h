@@ -42,9 +42,12 @@ class MeshView {
   std::size_t triangle_count() const { return triangle_count_; }
 
   Eigen::Vector3f vertex(std::size_t i) const {
-    float v[3];
-    std::memcpy(v, vertex_address(i), sizeof v);
-    return Eigen::Vector3f(v[0], v[1], v[2]) * scale_;
+    // One load per float: a copy of all three at once became 8 + 4-byte loads whose
+    // floats were then read back through the stack (a store-forwarding stall per vertex).
+    const std::byte* p = vertex_address(i);
+    float x, y, z;
+    std::memcpy(&x, p, sizeof x), std::memcpy(&y, p + 4, sizeof y), std::memcpy(&z, p + 8, sizeof z);
+    return Eigen::Vector3f(x, y, z) * scale_;
   }
   std::array<std::uint32_t, 3> triangle(std::size_t i) const {
     std::array<std::uint32_t, 3> t;
