@@ -9,12 +9,6 @@
 #ifdef _OPENMP
 #include <omp.h>
 #else
-inline int omp_get_num_threads() {
-  return 1;
-}
-inline int omp_get_thread_num() {
-  return 0;
-}
 inline int omp_get_max_threads() {
   return 1;
 }
@@ -97,41 +91,58 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
   const std::size_t n = map.size();
+  // Each leaf's pixel, and how many leaves fall in each pixel row.
   std::vector<std::int32_t> pix(leaves.size(), -1);
-#pragma omp parallel for schedule(static)
+  std::vector<std::int64_t> row_leaves(static_cast<std::size_t>(map.rows), 0);
+  std::int64_t* per_row = row_leaves.data();
+#pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
   for (std::int64_t i = 0; i < count; ++i)
-    if (leaves[i].area > 0.0f) pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
+    if (leaves[i].area > 0.0f) {
+      pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
+      if (pix[i] >= 0) ++per_row[pix[i] / map.cols];
+    }
+  // Bands of pixel rows with as many leaves each (the map's empty window and borders
+  // would leave a thread idle otherwise). A band's pixels are summed by one thread, in
+  // leaf order: the same sums whatever the number of bands.
+  const auto bands = static_cast<std::size_t>(omp_get_max_threads());
+  std::vector<std::int32_t> band_first(bands + 1, static_cast<std::int32_t>(n));
+  {
+    std::int64_t total = 0, seen = 0;
+    for (const std::int64_t in_row : row_leaves) total += in_row;
+    std::size_t b = 0;
+    for (int r = 0; r < map.rows && b < bands; ++r) {
+      while (b < bands && seen >= total * static_cast<std::int64_t>(b) / static_cast<std::int64_t>(bands))
+        band_first[b++] = r * map.cols;
+      seen += row_leaves[static_cast<std::size_t>(r)];
+    }
+  }
+  // visit(band, leaf, pixel) for every leaf on the map, each band by one thread.
+  const auto for_leaves_by_band = [&](auto&& visit) {
+#pragma omp parallel for schedule(static, 1)
+    for (std::size_t b = 0; b < bands; ++b) {
+      const std::int32_t first = band_first[b], last = band_first[b + 1];
+      for (std::size_t i = 0; i < leaves.size(); ++i) {
+        const std::int32_t k = pix[i];
+        if (k >= first && k < last) visit(b, i, k);
+      }
+    }
+  };
   // A single view sees the front surface of each column. Leaves more than layer_depth
   // behind the column's front were seen through a hole (or are outliers): kept aside.
   // (Anchoring on the column's busiest leaf instead lets a hole's backdrop win the rim
   // columns; an outlier in front only spoils its own pixel, which the median removes.)
   std::vector<float> front(n, -std::numeric_limits<float>::infinity());
-  for (std::size_t i = 0; i < leaves.size(); ++i)
-    if (pix[i] >= 0) front[pix[i]] = std::max(front[pix[i]], q[i].z());
-  // Each thread owns a band of pixel rows and reads every leaf, so each pixel is summed
-  // in leaf order by one thread (the same sums as one thread's).
+  for_leaves_by_band(
+      [&](std::size_t, std::size_t i, std::int32_t k) { front[k] = std::max(front[k], q[i].z()); });
   const auto layer = static_cast<float>(layer_depth);
-  std::vector<std::vector<Eigen::Vector3f>> behind(static_cast<std::size_t>(omp_get_max_threads()));
-  // visit(thread, leaf, pixel, in_front) for every leaf on the map.
-  const auto for_leaves_by_band = [&](auto&& visit) {
-#pragma omp parallel
-    {
-      const auto t = static_cast<std::int64_t>(omp_get_thread_num());
-      const auto bands = static_cast<std::int64_t>(omp_get_num_threads());
-      const auto first = static_cast<std::int32_t>(static_cast<std::int64_t>(n) * t / bands);
-      const auto last = static_cast<std::int32_t>(static_cast<std::int64_t>(n) * (t + 1) / bands);
-      for (std::size_t i = 0; i < leaves.size(); ++i) {
-        const std::int32_t k = pix[i];
-        if (k >= first && k < last) visit(static_cast<std::size_t>(t), i, k, q[i].z() >= front[k] - layer);
-      }
-    }
-  };
+  const auto in_front = [&](std::size_t i, std::int32_t k) { return q[i].z() >= front[k] - layer; };
+  std::vector<std::vector<Eigen::Vector3f>> behind(bands);
   // The tilt first: |S . w| / |S| per pixel, S = Σ a_i N_i of its leaves, summed in the
   // map's frame in the arrays that then take the positions (no fourth array of vectors).
   map.u.assign(n, 0.0f), map.v.assign(n, 0.0f), map.w.assign(n, 0.0f);
   const Eigen::Matrix3f axes = map.axes.cast<float>();
-  for_leaves_by_band([&](std::size_t, std::size_t i, std::int32_t k, bool in_front) {
-    if (!in_front) return;
+  for_leaves_by_band([&](std::size_t, std::size_t i, std::int32_t k) {
+    if (!in_front(i, k)) return;
     const Eigen::Vector3f s = axes * leaves[i].sum_an;
     map.u[k] += s.x(), map.v[k] += s.y(), map.w[k] += s.z();
   });
@@ -146,9 +157,9 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // or two leaves: float sums lose nothing), then divided in place. Leaves behind the
   // front are kept aside.
   map.weight.assign(n, 0.0f);
-  for_leaves_by_band([&](std::size_t t, std::size_t i, std::int32_t k, bool in_front) {
-    if (!in_front) {
-      behind[t].push_back(q[i]);
+  for_leaves_by_band([&](std::size_t band, std::size_t i, std::int32_t k) {
+    if (!in_front(i, k)) {
+      behind[band].push_back(q[i]);
       return;
     }
     const float a = leaves[i].area;

@@ -1,6 +1,7 @@
 // End to end on synthetic scans with ground truth: dents and bumps found where they
 // are, with their depth; design features and outliers never reported.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/report/defects_json.h"
@@ -96,6 +97,23 @@ TEST(Detect, TheSameScanGivesTheSameFindingsToTheLastBit) {
       EXPECT_EQ(a.diameter, b.diameter);
     }
   }
+  // And whatever the number of threads: the octree's slices, the map's bands and every
+  // other split are summed in a fixed order.
+  const int initial = omp_get_max_threads();
+  for (const int threads : {1, 3}) {
+    SCOPED_TRACE(threads);
+    omp_set_num_threads(threads);
+    const detect::Detection again = detect::detect(mesh, detect::DetectConfig{});
+    ASSERT_EQ(again.defects.size(), first.defects.size());
+    for (std::size_t i = 0; i < first.defects.size(); ++i) {
+      const auto &a = first.defects[i].defect, &b = again.defects[i].defect;
+      EXPECT_EQ(a.position, b.position);
+      EXPECT_EQ(a.normal, b.normal);
+      EXPECT_EQ(a.height, b.height);
+      EXPECT_EQ(a.diameter, b.diameter);
+    }
+  }
+  omp_set_num_threads(initial);
 }
 
 TEST(Detect, ThroughHolesAreHolesAndDropoutsAreNot) {
