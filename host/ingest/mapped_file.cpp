@@ -5,10 +5,20 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 
 #include "dentmark/host/ingest/mesh.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#else
+inline int omp_get_max_threads() {
+  return 1;
+}
+#endif
 
 namespace dentmark::ingest::detail {
 namespace {
@@ -17,6 +27,29 @@ constexpr int kPopulateRead = MADV_POPULATE_READ;
 #else
 constexpr int kPopulateRead = 22;  // Linux 5.14; older glibc headers lack the name
 #endif
+// Populates the mapping in 2 MB-aligned pieces, one per thread: mapping a cached 170 MB
+// scan is ~10 ms of page-table work for one thread. Returns 0 or the errno of a failure
+// (EINVAL, a kernel without MADV_POPULATE_READ, is no failure: pages then fault in).
+int populate(char* p, std::size_t size) {
+  const auto pieces = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+  // Piece i starts at the first 2 MB boundary (in the address space) from i / pieces of it.
+  const auto start = [&](std::size_t i) {
+    if (i == 0) return std::size_t{0};
+    if (i == pieces) return size;
+    constexpr std::uintptr_t kAlign = std::uintptr_t{2} << 20;
+    const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p) + size / pieces * i;
+    return std::min(size, static_cast<std::size_t>(((a + kAlign - 1) & ~(kAlign - 1)) -
+                                                   reinterpret_cast<std::uintptr_t>(p)));
+  };
+  int err = 0;
+#pragma omp parallel for schedule(static, 1) reduction(max : err)
+  for (std::size_t i = 0; i < pieces; ++i) {
+    const std::size_t b = start(i), e = start(i + 1);
+    if (b < e && ::madvise(p + b, e - b, kPopulateRead) != 0 && errno != EINVAL) err = std::max(err, errno);
+  }
+  return err;
+}
+
 }  // namespace
 
 MappedFile::MappedFile(const std::string& path) {
@@ -42,8 +75,7 @@ MappedFile::MappedFile(const std::string& path) {
     // random (vertex gathers), so no sequential-access advice either. Both are advice:
     // an older kernel without them faults the pages in as they are read.
     ::madvise(p, size_, MADV_HUGEPAGE);
-    if (::madvise(p, size_, kPopulateRead) != 0 && errno != EINVAL) {
-      const int err = errno;
+    if (const int err = populate(static_cast<char*>(p), size_); err != 0) {
       ::munmap(p, size_);
       ::close(fd);
       throw IngestError(path + ": cannot read: " + std::strerror(err));
