@@ -93,10 +93,14 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   for (const auto& l : tree.leaves()) st.surface_area += l.area;
   lap("octree");
   {
-    std::vector<double> sig;
+    // Every stride-th leaf with 4 triangles or more (NaN marks the others).
     const std::size_t stride = std::max<std::size_t>(1, tree.leaves().size() / 100000);
-    for (std::size_t i = 0; i < tree.leaves().size(); i += stride)
-      if (tree.leaves()[i].count >= 4) sig.push_back(tree.stats(i, i + 1).sigma);
+    std::vector<double> sig((tree.leaves().size() + stride - 1) / stride);
+#pragma omp parallel for schedule(static)
+    for (std::size_t j = 0; j < sig.size(); ++j)
+      sig[j] = tree.leaves()[j * stride].count >= 4 ? tree.stats(j * stride, j * stride + 1).sigma
+                                                    : std::numeric_limits<double>::quiet_NaN();
+    std::erase_if(sig, [](double x) { return std::isnan(x); });
     st.noise_floor_sigma = median_of(std::move(sig));
   }
   // Thresholds adapt to the measured noise floor of the normals.

@@ -8,7 +8,30 @@
 
 #include "leaf_sums.h"
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace dentmark::detect {
+namespace {
+
+int thread_count() {
+#ifdef _OPENMP
+  return std::max(1, omp_get_max_threads());
+#else
+  return 1;
+#endif
+}
+
+int thread_index() {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+
+}  // namespace
 
 std::uint64_t LinearOctree::triangle_key(const ingest::MeshView& mesh, std::size_t t) const {
   const detail::LeafGrid grid{origin_.cast<float>(), static_cast<float>(1.0 / leaf_size_), depth_};
@@ -94,12 +117,23 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   std::vector<double> top_area(top_nodes, 0.0);
   std::vector<Eigen::Vector3d> top_sum_an(top_nodes, Eigen::Vector3d::Zero());
   std::vector<std::size_t> first(top_nodes + 1, leaves_.size());  // first leaf at or after a node
-  for (std::size_t l = 0; l < leaves_.size(); ++l) {
-    const auto n = static_cast<std::size_t>(leaves_[l].key >> top_shift);
-    top_area[n] += leaves_[l].area;
-    top_sum_an[n] += leaves_[l].sum_an.cast<double>();
-    first[n] = std::min(first[n], l);
-  }
+  const auto top_node = [&](std::size_t l) { return static_cast<std::size_t>(leaves_[l].key >> top_shift); };
+  // A node's leaves are one run: each thread sums whole nodes, in leaf order (the same
+  // sums whatever the thread count). Part p starts at the first node beginning in it.
+  const auto parts = static_cast<std::int64_t>(thread_count());
+  const auto part_begin = [&](std::int64_t p) {
+    std::size_t l = leaves_.size() * static_cast<std::size_t>(p) / static_cast<std::size_t>(parts);
+    while (l > 0 && l < leaves_.size() && top_node(l) == top_node(l - 1)) ++l;
+    return l;
+  };
+#pragma omp parallel for schedule(static, 1)
+  for (std::int64_t p = 0; p < parts; ++p)
+    for (std::size_t l = part_begin(p), e = part_begin(p + 1); l < e; ++l) {
+      const std::size_t n = top_node(l);
+      top_area[n] += leaves_[l].area;
+      top_sum_an[n] += leaves_[l].sum_an.cast<double>();
+      first[n] = std::min(first[n], l);
+    }
   for (std::size_t n = top_nodes; n-- > 0;) first[n] = std::min(first[n], first[n + 1]);
   // Level by level from the root, each node's sums from its descendants at level `top`.
   std::vector<Node> frontier;  // the level-`top` nodes to split
@@ -124,36 +158,48 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   }
   if (top == 0) frontier.push_back({0, leaves_.size(), 0});
 
-  std::vector<std::uint32_t> out;
-  std::vector<Node> stack(frontier.rbegin(), frontier.rend());
-  while (!stack.empty()) {
-    const Node node = stack.back();
-    stack.pop_back();
-    const int shift = 3 * (depth_ - node.level - 1);
-    std::size_t bounds[9];
-    double area[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    Eigen::Vector3d sum_an[8];
-    for (auto& a : sum_an) a.setZero();
-    bounds[0] = node.begin;
-    int child = 0;
-    for (std::size_t l = node.begin; l < node.end; ++l) {
-      const auto c = static_cast<int>((leaves_[l].key >> shift) & 7);
-      while (child < c) bounds[++child] = l;
-      area[c] += leaves_[l].area;
-      sum_an[c] += leaves_[l].sum_an.cast<double>();
-    }
-    while (child < 8) bounds[++child] = node.end;
-    for (int c = 7; c >= 0; --c) {
-      if (bounds[c] == bounds[c + 1]) continue;
-      const double sigma = from_sums(area[c], sum_an[c]).sigma;
-      if (node.level + 1 == depth_) {
-        // A leaf: one cell, one range of triangles.
-        if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(bounds[c]));
-      } else if (sigma > split_sigma) {
-        stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
+  // Below `top` each frontier node's subtree is split on its own (by whichever thread is
+  // free); the leaves found are sorted at the end, so the order of work does not matter.
+  std::vector<std::vector<std::uint32_t>> found(static_cast<std::size_t>(parts));
+#pragma omp parallel num_threads(static_cast <int>(parts))
+  {
+    std::vector<std::uint32_t>& out = found[static_cast<std::size_t>(thread_index())];
+    std::vector<Node> stack;
+#pragma omp for schedule(dynamic, 4)
+    for (std::size_t f = 0; f < frontier.size(); ++f) {
+      stack.push_back(frontier[f]);
+      while (!stack.empty()) {
+        const Node node = stack.back();
+        stack.pop_back();
+        const int shift = 3 * (depth_ - node.level - 1);
+        std::size_t bounds[9];
+        double area[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+        Eigen::Vector3d sum_an[8];
+        for (auto& a : sum_an) a.setZero();
+        bounds[0] = node.begin;
+        int child = 0;
+        for (std::size_t l = node.begin; l < node.end; ++l) {
+          const auto c = static_cast<int>((leaves_[l].key >> shift) & 7);
+          while (child < c) bounds[++child] = l;
+          area[c] += leaves_[l].area;
+          sum_an[c] += leaves_[l].sum_an.cast<double>();
+        }
+        while (child < 8) bounds[++child] = node.end;
+        for (int c = 7; c >= 0; --c) {
+          if (bounds[c] == bounds[c + 1]) continue;
+          const double sigma = from_sums(area[c], sum_an[c]).sigma;
+          if (node.level + 1 == depth_) {
+            // A leaf: one cell, one range of triangles.
+            if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(bounds[c]));
+          } else if (sigma > split_sigma) {
+            stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
+          }
+        }
       }
     }
   }
+  std::vector<std::uint32_t> out;
+  for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
   std::sort(out.begin(), out.end());
   return out;
 }
