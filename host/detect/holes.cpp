@@ -46,11 +46,13 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   const double step = 0.5 * map.pixel;
   // A ray that has seen no skin yet and has risen to the highest skin's level can meet
   // no candidate after some skin below it: it is traced no further.
-  double skin_top = -std::numeric_limits<double>::infinity();
+  float skin_top_f = -std::numeric_limits<float>::infinity();
+#pragma omp parallel for schedule(static) reduction(max : skin_top_f)
   for (std::int32_t k = 0; k < rows * cols; ++k)
     if (map.weight[static_cast<std::size_t>(k)] > 0.0f && std::isfinite(ref[static_cast<std::size_t>(k)]) &&
         !deep.data[k])
-      skin_top = std::max(skin_top, static_cast<double>(ref[static_cast<std::size_t>(k)]));
+      skin_top_f = std::max(skin_top_f, ref[static_cast<std::size_t>(k)]);
+  const double skin_top = skin_top_f;
   auto trace = [&](const Eigen::Vector3d& b, std::int32_t deep_pixel) {
     const Eigen::Vector3d dir = map.has_viewpoint ? (map.viewpoint - b).normalized() : up;
     if (!(dir.z() > 0.05)) return;
