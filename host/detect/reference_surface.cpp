@@ -198,16 +198,24 @@ void ReferenceSurface::blend(int ty, int tx0, int tx1) {
                   std::numeric_limits<float>::quiet_NaN());
         continue;
       }
-      const double cu = q0->cu, cv = q0->cv, s = local_scale_;
+      // The pixels in floats (twice as many per vector as doubles): X and Y are within a
+      // few units, the heights within centimetres of the map plane, so the rounding stays
+      // at nanometres.
+      float Af[6], Bf[6];
+      for (int i = 0; i < 6; ++i) Af[i] = static_cast<float>(A[i]), Bf[i] = static_cast<float>(B[i]);
+      const auto waf = static_cast<float>(wa), wbf = static_cast<float>(wb);
+      const auto cu = static_cast<float>(q0->cu), cv = static_cast<float>(q0->cv);
+      const auto s = static_cast<float>(local_scale_), inv_t = 1.0f / static_cast<float>(T);
+      const float ax0 = -0.5f - static_cast<float>(ix);
       float* out = ref_.data() + static_cast<std::size_t>(r) * map_.cols;
       const std::size_t row = static_cast<std::size_t>(r) * map_.cols;
 #pragma omp simd
       for (int cc = c; cc < end; ++cc) {
-        const double ax = ((cc + 0.5) / T - 0.5) - ix;
-        const double X = (u[row + cc] - cu) * s, Y = (v[row + cc] - cv) * s;
-        const double a = A[0] + A[1] * X + A[2] * Y + A[3] * X * X + A[4] * X * Y + A[5] * Y * Y;
-        const double b = B[0] + B[1] * X + B[2] * Y + B[3] * X * X + B[4] * X * Y + B[5] * Y * Y;
-        const float val = static_cast<float>((a + ax * b) / (wa + ax * wb));
+        const float ax = (static_cast<float>(cc) + 0.5f) * inv_t + ax0;
+        const float X = (u[row + cc] - cu) * s, Y = (v[row + cc] - cv) * s;
+        const float a = Af[0] + Af[1] * X + Af[2] * Y + Af[3] * X * X + Af[4] * X * Y + Af[5] * Y * Y;
+        const float b = Bf[0] + Bf[1] * X + Bf[2] * Y + Bf[3] * X * X + Bf[4] * X * Y + Bf[5] * Y * Y;
+        const float val = (a + ax * b) / (waf + ax * wbf);
         out[cc] = weight[row + cc] > 0.0f ? val : std::numeric_limits<float>::quiet_NaN();
       }
     }
