@@ -154,42 +154,69 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
 
 void ReferenceSurface::blend(int ty, int tx0, int tx1) {
   const int T = tile_;
-  const int c1 = std::min(map_.cols, tx1 * T);
+  const int c1 = std::min(map_.cols, tx1 * T), r1 = std::min(map_.rows, (ty + 1) * T);
+  if (c1 <= tx0 * T || r1 <= ty * T) return;
   const float* u = map_.u.data();
   const float* v = map_.v.data();
   const float* weight = map_.weight.data();
-  for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r) {
+  // A pixel's four nearest fits are those at tiles (iy + dy, ix + dx), dy, dx in {0, 1}.
+  const auto lower = [T](int p) { return static_cast<int>(std::floor((p + 0.5) / T - 0.5)); };
+  // Each fit's quadratic re-expanded about the first one's centre, once per (iy, ix)
+  // this span meets (not once per pixel row).
+  struct Corner {
+    double about[4][6];
+    bool ok[4];
+    const Quadratic* q0;
+  };
+  const int iy0 = lower(ty * T), ix0 = lower(tx0 * T);
+  const int ny = lower(r1 - 1) - iy0 + 1, nx = lower(c1 - 1) - ix0 + 1;
+  std::vector<Corner> corners(static_cast<std::size_t>(ny * nx));
+  for (int jy = 0; jy < ny; ++jy)
+    for (int jx = 0; jx < nx; ++jx) {
+      Corner& k = corners[static_cast<std::size_t>(jy * nx + jx)];
+      for (int n = 0; n < 4; ++n) {
+        const int dy = n / 2, dx = n % 2;
+        const Quadratic& q =
+            fits_[static_cast<std::size_t>(std::clamp(iy0 + jy + dy, 0, tiles_y_ - 1)) * tiles_x_ +
+                  std::clamp(ix0 + jx + dx, 0, tiles_x_ - 1)];
+        if (n == 0) k.q0 = &q;
+        k.ok[n] = q.ok;
+        if (!q.ok) continue;
+        // Its quadratic in x = X - d, y = Y - e, expanded in X, Y (about q0's centre).
+        const double d = (q.cu - k.q0->cu) * local_scale_, e = (q.cv - k.q0->cv) * local_scale_;
+        const auto& c = q.c;
+        const double about[6] = {c(0) - c(1) * d - c(2) * e + c(3) * d * d + c(4) * d * e + c(5) * e * e,
+                                 c(1) - 2.0 * c(3) * d - c(4) * e,
+                                 c(2) - c(4) * d - 2.0 * c(5) * e,
+                                 c(3),
+                                 c(4),
+                                 c(5)};
+        std::copy(about, about + 6, k.about[n]);
+      }
+    }
+  for (int r = ty * T; r < r1; ++r) {
     const double fy = (r + 0.5) / T - 0.5;
     const int iy = static_cast<int>(std::floor(fy));
     const double ay = fy - iy;
-    // The tiles' columns in runs that share their four nearest fits.
+    // The tiles' columns in runs that share their four nearest fits: a run ends where
+    // lower() steps, found from its arithmetic guess and checked with lower() itself.
     for (int c = tx0 * T, end = c; c < c1; c = end) {
-      const int ix = static_cast<int>(std::floor((c + 0.5) / T - 0.5));
-      while (end < c1 && static_cast<int>(std::floor((end + 0.5) / T - 0.5)) == ix) ++end;
+      const int ix = lower(c);
+      end = std::clamp(T * ix + (3 * T) / 2, c + 1, c1);
+      while (end < c1 && lower(end) == ix) ++end;
+      while (end > c + 1 && lower(end - 1) != ix) --end;
       // The four fits, (dy, dx) = (0, 0), (0, 1), (1, 0), (1, 1), weighted bilinearly:
       // fit n weighs (1 - ax or ax) * (1 - ay or ay) + 1e-9, or 0 if it failed. Along
       // the run only ax changes, so the blend is (A + ax B) / (wa + ax wb), with A and B
       // quadratics combined from the four, all about the first fit's centre.
+      const Corner& k = corners[static_cast<std::size_t>((iy - iy0) * nx + (ix - ix0))];
       double A[6] = {0, 0, 0, 0, 0, 0}, B[6] = {0, 0, 0, 0, 0, 0}, wa = 0.0, wb = 0.0;
-      const Quadratic* q0 = nullptr;
       for (int n = 0; n < 4; ++n) {
+        if (!k.ok[n]) continue;
         const int dy = n / 2, dx = n % 2;
-        const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + dy, 0, tiles_y_ - 1)) * tiles_x_ +
-                                   std::clamp(ix + dx, 0, tiles_x_ - 1)];
-        if (n == 0) q0 = &q;
-        if (!q.ok) continue;
         const double wy = dy ? ay : 1.0 - ay;
         const double alpha = dx ? 1e-9 : wy + 1e-9, beta = dx ? wy : -wy;
-        // Its quadratic in x = X - d, y = Y - e, expanded in X, Y (about q0's centre).
-        const double d = (q.cu - q0->cu) * local_scale_, e = (q.cv - q0->cv) * local_scale_;
-        const auto& k = q.c;
-        const double about[6] = {k(0) - k(1) * d - k(2) * e + k(3) * d * d + k(4) * d * e + k(5) * e * e,
-                                 k(1) - 2.0 * k(3) * d - k(4) * e,
-                                 k(2) - k(4) * d - 2.0 * k(5) * e,
-                                 k(3),
-                                 k(4),
-                                 k(5)};
-        for (int i = 0; i < 6; ++i) A[i] += alpha * about[i], B[i] += beta * about[i];
+        for (int i = 0; i < 6; ++i) A[i] += alpha * k.about[n][i], B[i] += beta * k.about[n][i];
         wa += alpha, wb += beta;
       }
       if (!(wa > 0.0)) {  // no fit near: nothing is measured here
@@ -204,7 +231,7 @@ void ReferenceSurface::blend(int ty, int tx0, int tx1) {
       float Af[6], Bf[6];
       for (int i = 0; i < 6; ++i) Af[i] = static_cast<float>(A[i]), Bf[i] = static_cast<float>(B[i]);
       const auto waf = static_cast<float>(wa), wbf = static_cast<float>(wb);
-      const auto cu = static_cast<float>(q0->cu), cv = static_cast<float>(q0->cv);
+      const auto cu = static_cast<float>(k.q0->cu), cv = static_cast<float>(k.q0->cv);
       const auto s = static_cast<float>(local_scale_), inv_t = 1.0f / static_cast<float>(T);
       const float ax0 = -0.5f - static_cast<float>(ix);
       float* out = ref_.data() + static_cast<std::size_t>(r) * map_.cols;
