@@ -6,13 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-#ifdef _OPENMP
-#include <omp.h>
-#else
-inline int omp_get_max_threads() {
-  return 1;
-}
-#endif
+#include "threads.h"
 
 namespace dentmark::detect {
 
@@ -104,7 +98,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // Bands of pixel rows with as many leaves each (the map's empty window and borders
   // would leave a thread idle otherwise). A band's pixels are summed by one thread, in
   // leaf order: the same sums whatever the number of bands.
-  const auto bands = static_cast<std::size_t>(omp_get_max_threads());
+  const auto bands = static_cast<std::size_t>(detail::thread_count());
   std::vector<std::int32_t> band_first(bands + 1, static_cast<std::int32_t>(n));
   {
     std::int64_t total = 0, seen = 0;

@@ -11,9 +11,7 @@
 #include <new>
 #include <utility>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "threads.h"
 
 namespace dentmark::detect::detail {
 namespace {
@@ -386,22 +384,6 @@ class BucketSummer {
   std::vector<const Chunk<Single>*> single_chunks_;
 };
 
-int thread_count() {
-#ifdef _OPENMP
-  return std::max(1, omp_get_max_threads());
-#else
-  return 1;
-#endif
-}
-
-int thread_id() {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
-
 // Pass 1 over one thread's slice of the triangles.
 class LeafFiler {
  public:
@@ -537,7 +519,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   std::atomic<std::size_t> next_slice{0};
 #pragma omp parallel num_threads(threads)
   {
-    const auto t = static_cast<std::size_t>(thread_id());
+    const auto t = static_cast<std::size_t>(thread_index());
     stores[t] = std::make_unique<ThreadRecords>(buckets);
     LeafFiler filer(grid, low_bits, *stores[t]);
     for (std::size_t s; (s = next_slice.fetch_add(1, std::memory_order_relaxed)) < slices;)
@@ -567,7 +549,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
   std::vector<std::size_t> part_begin(static_cast<std::size_t>(threads)), part_size(part_begin.size());
 #pragma omp parallel num_threads(threads)
   {
-    const auto t = static_cast<std::size_t>(thread_id());
+    const auto t = static_cast<std::size_t>(thread_index());
     const auto nt = static_cast<std::size_t>(threads);
     const auto first_bucket = [&](std::size_t part) {
       return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * part / nt) -

@@ -7,31 +7,9 @@
 #include <stdexcept>
 
 #include "leaf_sums.h"
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "threads.h"
 
 namespace dentmark::detect {
-namespace {
-
-int thread_count() {
-#ifdef _OPENMP
-  return std::max(1, omp_get_max_threads());
-#else
-  return 1;
-#endif
-}
-
-int thread_index() {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
-
-}  // namespace
 
 std::uint64_t LinearOctree::triangle_key(const ingest::MeshView& mesh, std::size_t t) const {
   const detail::LeafGrid grid{origin_.cast<float>(), static_cast<float>(1.0 / leaf_size_), depth_};
@@ -120,7 +98,7 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   const auto top_node = [&](std::size_t l) { return static_cast<std::size_t>(leaves_[l].key >> top_shift); };
   // A node's leaves are one run: each thread sums whole nodes, in leaf order (the same
   // sums whatever the thread count). Part p starts at the first node beginning in it.
-  const auto parts = static_cast<std::int64_t>(thread_count());
+  const auto parts = static_cast<std::int64_t>(detail::thread_count());
   const auto part_begin = [&](std::int64_t p) {
     std::size_t l = leaves_.size() * static_cast<std::size_t>(p) / static_cast<std::size_t>(parts);
     while (l > 0 && l < leaves_.size() && top_node(l) == top_node(l - 1)) ++l;
@@ -163,7 +141,7 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   std::vector<std::vector<std::uint32_t>> found(static_cast<std::size_t>(parts));
 #pragma omp parallel num_threads(static_cast <int>(parts))
   {
-    std::vector<std::uint32_t>& out = found[static_cast<std::size_t>(thread_index())];
+    std::vector<std::uint32_t>& out = found[static_cast<std::size_t>(detail::thread_index())];
     std::vector<Node> stack;
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t f = 0; f < frontier.size(); ++f) {

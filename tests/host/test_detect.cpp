@@ -86,8 +86,7 @@ TEST(Detect, TheSameScanGivesTheSameFindingsToTheLastBit) {
   mesh.triangles = scan.triangles;
   const detect::Detection first = detect::detect(mesh, detect::DetectConfig{});
   ASSERT_EQ(first.defects.size(), 5u);
-  for (int run = 0; run < 8; ++run) {
-    const detect::Detection again = detect::detect(mesh, detect::DetectConfig{});
+  const auto expect_same_findings = [&first](const detect::Detection& again) {
     ASSERT_EQ(again.defects.size(), first.defects.size());
     for (std::size_t i = 0; i < first.defects.size(); ++i) {
       const auto &a = first.defects[i].defect, &b = again.defects[i].defect;
@@ -96,22 +95,15 @@ TEST(Detect, TheSameScanGivesTheSameFindingsToTheLastBit) {
       EXPECT_EQ(a.height, b.height);
       EXPECT_EQ(a.diameter, b.diameter);
     }
-  }
+  };
+  for (int run = 0; run < 8; ++run) expect_same_findings(detect::detect(mesh, detect::DetectConfig{}));
   // And whatever the number of threads: the octree's slices, the map's bands and every
   // other split are summed in a fixed order.
   const int initial = omp_get_max_threads();
   for (const int threads : {1, 3}) {
     SCOPED_TRACE(threads);
     omp_set_num_threads(threads);
-    const detect::Detection again = detect::detect(mesh, detect::DetectConfig{});
-    ASSERT_EQ(again.defects.size(), first.defects.size());
-    for (std::size_t i = 0; i < first.defects.size(); ++i) {
-      const auto &a = first.defects[i].defect, &b = again.defects[i].defect;
-      EXPECT_EQ(a.position, b.position);
-      EXPECT_EQ(a.normal, b.normal);
-      EXPECT_EQ(a.height, b.height);
-      EXPECT_EQ(a.diameter, b.diameter);
-    }
+    expect_same_findings(detect::detect(mesh, detect::DetectConfig{}));
   }
   omp_set_num_threads(initial);
 }
