@@ -110,8 +110,8 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
       seen += row_leaves[static_cast<std::size_t>(r)];
     }
   }
-  // visit(band, leaf, pixel) for every leaf on the map, each band by one thread.
   std::vector<float> front(n, -std::numeric_limits<float>::infinity());
+  // visit(band, leaf, pixel) for every leaf on the map, each band by one thread.
   const auto for_leaves_by_band = [&](auto&& visit) {
 #pragma omp parallel for schedule(static, 1)
     for (std::size_t b = 0; b < bands; ++b) {

@@ -311,7 +311,7 @@ class BucketSummer {
   // two or three passes of at most 11 bits over a bucket's thousands of leaves, a third
   // of the time std::sort took.
   void sort_by_morton() {
-    if (order_.size() < 64) {
+    if (order_.size() < 64) {  // (64 distinct codes or more have 6 bits or more)
       std::sort(order_.begin(), order_.end());
       return;
     }
@@ -384,7 +384,7 @@ class BucketSummer {
   std::vector<const Chunk<Single>*> single_chunks_;
 };
 
-// Pass 1 over one thread's slice of the triangles.
+// Pass 1 for one thread: files the slices of triangles it takes, one after another.
 class LeafFiler {
  public:
   LeafFiler(const LeafGrid& grid, int low_bits, ThreadRecords& store)

@@ -139,7 +139,8 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   // Below `top` each frontier node's subtree is split on its own (by whichever thread is
   // free); the leaves found are sorted at the end, so the order of work does not matter.
   std::vector<std::vector<std::uint32_t>> found(static_cast<std::size_t>(parts));
-#pragma omp parallel num_threads(static_cast <int>(parts))
+  const int team = static_cast<int>(parts);  // at most one list per thread
+#pragma omp parallel num_threads(team)
   {
     std::vector<std::uint32_t>& out = found[static_cast<std::size_t>(detail::thread_index())];
     std::vector<Node> stack;
