@@ -30,12 +30,19 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
   {
     std::vector<std::pair<std::uint64_t, Eigen::Vector3f>> mine;
     std::int32_t pixel[kBlock];
+    float x[kBlock], y[kBlock], z[kBlock];
 #pragma omp for schedule(static) nowait
     for (std::int64_t blk = 0; blk < blocks; ++blk) {
       const std::int64_t first = blk * kBlock, m = std::min(kBlock, n - first);
+      for (std::int64_t j = 0; j < m; ++j) {  // the loads apart: then the arithmetic vectorises
+        const Eigen::Vector3f p = mesh.vertex(static_cast<std::size_t>(first + j));
+        x[j] = p.x(), y[j] = p.y(), z[j] = p.z();
+      }
+#pragma omp simd
       for (std::int64_t j = 0; j < m; ++j) {
-        const Eigen::Vector3f p = mesh.vertex(static_cast<std::size_t>(first + j)) - origin;
-        const float c = (axes.row(0).dot(p) - u0) * inv, r = (axes.row(1).dot(p) - v0) * inv;
+        const float px = x[j] - origin.x(), py = y[j] - origin.y(), pz = z[j] - origin.z();
+        const float c = (axes(0, 0) * px + axes(0, 1) * py + axes(0, 2) * pz - u0) * inv,
+                    r = (axes(1, 0) * px + axes(1, 1) * py + axes(1, 2) * pz - v0) * inv;
         const bool on = (c >= 0.0f) & (r >= 0.0f) & (c < cols) & (r < rows);  // also not NaN
         const auto ci = static_cast<std::int32_t>(on ? c : 0.0f),
                    ri = static_cast<std::int32_t>(on ? r : 0.0f);

@@ -36,13 +36,13 @@ constexpr double kRoughRing = 3.5;
 // Median edge length over a sample of triangles: the scan's point spacing.
 double measure_spacing(const ingest::MeshView& mesh) {
   const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
-  std::vector<double> e;
-  e.reserve(n / stride + 1);
-  for (std::size_t i = 0; i < n; i += stride) {
-    const auto t = mesh.triangle(i);
+  std::vector<double> e((n + stride - 1) / stride);
+#pragma omp parallel for schedule(static)
+  for (std::size_t j = 0; j < e.size(); ++j) {
+    const auto t = mesh.triangle(j * stride);
     const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
     // Shortest edge: on grid meshes the others are diagonals.
-    e.push_back(static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()})));
+    e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
   }
   return median_of(std::move(e));
 }
