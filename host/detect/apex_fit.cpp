@@ -52,7 +52,7 @@ PixelSamples::PixelSamples(const ingest::MeshView& mesh, const HeightMap& map,
         if (pixel[j] >= 0 && select[static_cast<std::size_t>(pixel[j])])
           mine.emplace_back(std::uint64_t{static_cast<std::uint32_t>(pixel[j])} << 32 |
                                 static_cast<std::uint32_t>(first + j),
-                            axes * (mesh.vertex(static_cast<std::size_t>(first + j)) - origin));
+                            axes * (Eigen::Vector3f(x[j], y[j], z[j]) - origin));
     }
 #pragma omp critical
     found.insert(found.end(), mine.begin(), mine.end());

@@ -2,10 +2,6 @@
 
 #include <opencv2/imgproc.hpp>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 namespace dentmark::detect {
 
 Components label_components(const cv::Mat& mask, int connectivity) {
