@@ -166,6 +166,14 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   cv::Mat dev(rows, cols, CV_32F), cand;
   // Working images, reused by every iteration.
   cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, num, valid(rows, cols, CV_8U);
+  // Pixels far from their 3 x 3 median: outlier spikes.
+  cv::Mat spike(rows, cols, CV_8U);
+  // Pixels found not to be skin in any fit so far: spikes, and pixels more than hole_depth
+  // off it (a hole's backdrop, a handle's top). They stay out of every later fit: left
+  // to the candidates, which change from one fit to the next, they come back into every
+  // other fit and pull it by their weight times their distance (a 10 mm spike moves a
+  // whole window's reference by ~0.1 mm).
+  cv::Mat off_skin(rows, cols, CV_8U, cv::Scalar(0));
   std::vector<double> scale_sigma(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
@@ -183,6 +191,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       wvp[k] = ok ? map.weight[k] : 0.0f;
       vp[k] = ok ? 255 : 0;
     }
+    st.deviation_noise = robust_sigma(dev, interior);
     // Median first: a lone outlier spike cannot survive it; a defect of a few pixels can.
     if (scales.front() >= 3)
       cv::medianBlur(dz, dm, 3);
@@ -190,8 +199,17 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       dz.copyTo(dm);
     float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
     const float* dmp = dm.ptr<float>();
+    std::uint8_t* sp = spike.ptr<std::uint8_t>();
+    const auto spike_height =
+        static_cast<float>(std::max(cfg.detection_sigma * st.deviation_noise, 0.5 * cfg.min_height));
 #pragma omp parallel for schedule(static)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) wdm[k] = wvp[k] * dmp[k];
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
+      // A spike stands out of its neighbourhood by more than the neighbourhood stands out
+      // of the reference; a narrow defect's apex (its neighbours deep too) does not.
+      const float off = std::abs(dzp[k] - dmp[k]);
+      sp[k] = vp[k] && off > spike_height && off > 2.0f * std::abs(dmp[k]) ? 255 : 0;
+      wdm[k] = wvp[k] * dmp[k];
+    }
     cand.create(rows, cols, CV_8U);
     cand.setTo(0);
     std::uint8_t* cp = cand.ptr<std::uint8_t>();
@@ -207,11 +225,12 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
         cp[q] |= (vp[q] && std::abs(rs[q]) > thr) ? 255 : 0;
     }
-    if (it + 1 == iterations) {
-      st.deviation_noise = robust_sigma(dev, interior);
-    } else {
+    if (it + 1 < iterations) {
+      cv::Mat far_off;
+      cv::compare(cv::abs(dev), cfg.hole_depth, far_off, cv::CMP_GT);  // NaN compares false
+      off_skin |= spike | far_off;
       cv::Mat grown;
-      cv::dilate(cand, grown, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
+      cv::dilate(cand | off_skin, grown, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
       const std::uint8_t* g = grown.ptr<std::uint8_t>();
       for (std::size_t k = 0; k < map.size(); ++k) ref_weights[k] = g[k] ? 0.0f : map.weight[k];
     }
@@ -238,6 +257,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   for (const long k : group_pixels) octree_px.data[k] = 255;
   octree_px &= ~hole_zone;
   cv::Mat any = cand | octree_px;
+  const cv::Mat not_surface = any | spike;  // left out of the normals' plane fits
   cv::Mat labels;
   const int ncomp = cv::connectedComponents(any, labels, 8, CV_32S);
   std::vector<Component> comps(static_cast<std::size_t>(std::max(ncomp, 1)));
@@ -411,13 +431,17 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     for (int r = br0; r <= br1; ++r)
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
-        if (!(map.weight[k] > 0.0f) || any.data[k] || edge_zone.data[k] || hole_zone.data[k]) continue;
+        if (!(map.weight[k] > 0.0f) || any.data[k] || edge_zone.data[k] || hole_zone.data[k] || spike.data[k])
+          continue;
         // Keep the defect's faint rim out of its own reference.
         if (c >= c0 - guard && c <= c1 + guard && r >= r0 - guard && r <= r1 + guard) continue;
+        // Residuals along the normal, as the deviation's: a pixel of a spike's steep
+        // triangles is millimetres off in w but not along its normal.
+        const double wk = map.weight[k] * static_cast<double>(map.cos_tilt[k]) * map.cos_tilt[k];
         const auto b = basis(map.u[k], map.v[k]);
-        N += map.weight[k] * b * b.transpose();
-        rhs += map.weight[k] * map.w[k] * b;
-        ring_ww += map.weight[k] * static_cast<double>(map.w[k]) * map.w[k];
+        N += wk * b * b.transpose();
+        rhs += wk * map.w[k] * b;
+        ring_ww += wk * static_cast<double>(map.w[k]) * map.w[k];
         ++ring;
       }
     Eigen::Matrix<double, 6, 1> quad = Eigen::Matrix<double, 6, 1>::Zero();
@@ -442,7 +466,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     for (int r = br0; r <= br1; ++r)
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
-        if (!(map.weight[k] > 0.0f)) continue;
+        if (!(map.weight[k] > 0.0f) || spike.data[k]) continue;  // spikes: never the peak, never measured
         const double refw = local ? basis(map.u[k], map.v[k]).dot(quad)
                                   : static_cast<double>(ref[static_cast<std::size_t>(k)]);
         if (std::isfinite(refw))
@@ -585,7 +609,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     {
       const long pk = map.pixel_of(pos.x(), pos.y());
       d.normal = patch_normal(pk >= 0 ? static_cast<int>(pk / cols) : peak / cols,
-                              pk >= 0 ? static_cast<int>(pk % cols) : peak % cols, any);
+                              pk >= 0 ? static_cast<int>(pk % cols) : peak % cols, not_surface);
     }
     d.height = height;
     d.diameter = std::max(h, 4.0 * r_half);

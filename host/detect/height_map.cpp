@@ -162,12 +162,16 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // or two leaves: float sums lose nothing), then divided in place. Leaves behind the
   // front are kept aside.
   map.weight.assign(n, 0.0f);
+  const Eigen::Vector3f w_axis = axes.row(2).transpose();
   for_leaves_by_band([&](std::size_t band, std::size_t i, std::int32_t k) {
     if (!in_front(i, k)) {
       behind[band].push_back(q[i]);
       return;
     }
-    const float a = leaves[i].area;
+    // The leaf's area projected on the map plane, |Σ a_i N_i . w|: a sample's footprint
+    // on the map. A spike's triangles (an outlier vertex meshed to its neighbours) are
+    // tens of times a normal one's area but cover no more of the map.
+    const float a = std::abs(w_axis.dot(leaves[i].sum_an));
     map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
   });
   for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());

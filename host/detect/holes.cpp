@@ -28,7 +28,9 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
   std::vector<HoleRegion> cand;
   std::vector<int> cand_area;
   for (std::size_t i = 1; i < index.size(); ++i) {
-    if (regions.touches_border[i]) continue;
+    // One pixel seen deep is an outlier spike behind the skin (its few triangles hold
+    // the pixel's front), not a hole: a hole shows its backdrop over several pixels.
+    if (regions.touches_border[i] || regions.area[i] < 2) continue;
     const double d = 2.0 * std::sqrt(regions.area[i] * px_area / std::numbers::pi);
     if (d > max_diameter) continue;
     index[i] = static_cast<int>(cand.size());

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <random>
+
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
@@ -74,6 +76,46 @@ TEST(Detect, FindsTargetSizedDefectsWithPositionAndDepth) {
       EXPECT_GT(f.defect.normal.dot(r.det.map.axes.row(2).transpose()), 0.9);
   }
   EXPECT_GE(depth_ok, 9);
+}
+
+TEST(Detect, MeshedOutlierSpikesNeitherHideNorFakeDefects) {
+  // A mesher without an edge-length filter keeps an outlier's triangles: a spike of
+  // 2-20 mm on one vertex, its six triangles 50-400 times a normal one's area. About one
+  // spike per 3 cm² here. The 3 x 3 median hides them from the candidates; unless they
+  // are also kept out of the reference fits, each pulls its window's reference by
+  // ~0.1 mm; one behind the skin must not pass for a through-hole, one inside a defect
+  // must not become its peak, one in a defect's ring must not make it "not a smooth
+  // panel". (Before: 1 to 3 of the 5 defects lost on 9 of 20 seeds, and false holes.)
+  for (std::uint64_t seed : {29u, 30u}) {
+    SCOPED_TRACE(seed);
+    sim::scan::SynthScan scan = sim::scan::synthesize_scan(small_door(seed));
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+    int spikes = 0;
+    for (auto& v : scan.vertices)
+      if (u01(rng) < 3e-4f) {
+        const float off = (u01(rng) < 0.5f ? -1.0f : 1.0f) * (0.002f + 0.018f * u01(rng));
+        v += off * v.normalized();  // along the sensor's ray
+        ++spikes;
+      }
+    ASSERT_GT(spikes, 150);
+    ingest::Mesh mesh;
+    mesh.vertices = scan.vertices;
+    mesh.triangles = scan.triangles;
+    const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
+    report::DefectsFile found;
+    for (const auto& f : det.defects)
+      found.defects.push_back({report::class_name(f.defect.defect_class), f.defect});
+    const report::Evaluation eval = report::evaluate(report::truth_from_scan(scan), found);
+    EXPECT_EQ(eval.matched, 5);
+    EXPECT_EQ(eval.false_alarms, 0);
+    EXPECT_LE(eval.max_position_error, 0.001);
+    // As without spikes, up to the fit's noise on the 5 mm, 0.1 mm dent (the worst of 20
+    // seeds was 23 µm).
+    EXPECT_LE(eval.max_depth_error, 25e-6);
+    EXPECT_LE(eval.mean_depth_error, 10e-6);
+    for (const auto& f : det.defects) EXPECT_GT(f.defect.normal.dot(det.map.axes.row(2).transpose()), 0.9);
+  }
 }
 
 TEST(Detect, TheSameScanGivesTheSameFindingsToTheLastBit) {
@@ -204,11 +246,28 @@ TEST(Detect, CleanPanelWithOutliersAndShuffledTrianglesHasNoDefects) {
   EXPECT_EQ(r.eval.reported, 0)
       << "first at "
       << (r.det.defects.empty() ? Eigen::Vector3d::Zero() : r.det.defects[0].defect.position).transpose();
-  // The handle, crease, window and borders are there, as design features.
-  int design = 0;
-  for (const auto& f : r.det.features)
-    design += f.defect.defect_class == protocol::DefectClass::kDesignFeature;
-  EXPECT_GE(design, 2);
+  // The handle and the crease are there, as design features: their points fall on pixels
+  // of design-feature findings (with the window and the borders these may be one finding,
+  // now that the reference passes under the handle instead of bulging around it).
+  const sim::scan::SynthScan scan = sim::scan::synthesize_scan(o);
+  int checked = 0;
+  for (const auto& feature : scan.features) {
+    if (feature.name != "handle" && feature.name != "crease") continue;
+    ++checked;
+    int on_map = 0, on_design = 0;
+    for (const auto& p : feature.points) {
+      const Eigen::Vector3d q = r.det.map.to_map(p);
+      const long k = r.det.map.pixel_of(q.x(), q.y());
+      if (k < 0) continue;
+      ++on_map;
+      const int label = r.det.labels[static_cast<std::size_t>(k)];
+      on_design += label <= -2 && r.det.features[static_cast<std::size_t>(-2 - label)].defect.defect_class ==
+                                      protocol::DefectClass::kDesignFeature;
+    }
+    EXPECT_GE(on_map, 5) << feature.name;
+    EXPECT_GE(on_design, 0.8 * on_map) << feature.name;
+  }
+  EXPECT_EQ(checked, 2);
 }
 
 TEST(Detect, PapersCaseFindsTheTallBumpNotTheHandle) {
