@@ -13,6 +13,7 @@
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
+#include "dentmark/host/ingest/units.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
 #include "dentmark/host/report/pictures.h"
@@ -29,7 +30,7 @@ nlohmann::json rows_of(const Eigen::Isometry3d& t) {
 }
 
 struct DetectArgs {
-  std::string scan, units = "m", config, out, json, report, ply;
+  std::string scan, units = "auto", config, out, json, report, ply;
   bool verbose = false;
 };
 
@@ -60,6 +61,20 @@ int run_detect(const DetectArgs& a) {
   if (tty) ro.progress = [](double f) { std::fprintf(stderr, "\rreading %3.0f %%", 100 * f); };
   try {
     scan = ingest::open_scan(a.scan, ro);
+    if (a.units == "auto") {
+      const ingest::ScaleEvidence e = ingest::measure_scale(scan.mesh);
+      if (ingest::looks_like_millimetres(e)) {
+        char note[256];
+        std::snprintf(note, sizeof note,
+                      "%s: read as millimetres: it spans %.4g units, its samples %.3g apart "
+                      "(--units m to override)",
+                      a.scan.c_str(), e.extent, e.spacing);
+        if (tty) std::fprintf(stderr, "\n");
+        log::info(note);
+        ro.scale_to_m = 1e-3;
+        scan = ingest::open_scan(a.scan, ro);
+      }
+    }
   } catch (const ingest::IngestError& e) {
     if (tty) std::fprintf(stderr, "\n");
     log::error(e.what());
@@ -190,7 +205,11 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   auto d = std::make_shared<DetectArgs>();
   CLI::App* det = app.add_subcommand("detect", "Find dents and bumps on a scan (PLY, OBJ, STL, XYZ)");
   det->add_option("scan", d->scan, "Scan file")->required();
-  det->add_option("--units", d->units, "Units of the scan file")->check(CLI::IsMember({"m", "mm"}));
+  det->add_option("--units", d->units,
+                  "Units of the scan file; auto: metres unless the scan is over 20 units across or "
+                  "sampled over 0.05 units apart, then millimetres")
+      ->check(CLI::IsMember({"auto", "m", "mm"}))
+      ->default_str("auto");
   det->add_option("--config", d->config, "YAML detection settings");
   det->add_option("--out", d->out, "Defect list, binary protocol file (.dml)")->required();
   det->add_option("--json", d->json, "Defect list as JSON (dentmark.defects/1)");

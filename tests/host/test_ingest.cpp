@@ -15,6 +15,7 @@
 #include "dentmark/host/ingest/cloud_mesher.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
+#include "dentmark/host/ingest/units.h"
 
 namespace dentmark::ingest {
 namespace {
@@ -164,6 +165,48 @@ TEST(Ingest, MillimetresAreScaledToMetres) {
   ReadOptions o;
   o.scale_to_m = 1e-3;
   expect_reference(read_mesh(write_file("e.ply", ascii_ply()), o), 1e-3f);
+}
+
+// A curved panel w x h (m) sampled `step` apart 0.9 m from the sensor, in units of `unit`
+// metres, with `outliers` vertices thrown 50 m away.
+Mesh grid_panel(double w, double h, double step, double unit, int outliers = 0) {
+  Mesh m;
+  const int nx = static_cast<int>(w / step) + 1, ny = static_cast<int>(h / step) + 1;
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      const double px = x * step - 0.5 * w, py = y * step - 0.5 * h;
+      m.vertices.push_back((Eigen::Vector3d(px, py, 0.9 - 0.3 * px * px) / unit).cast<float>());
+    }
+  for (int k = 0; k < outliers; ++k)
+    m.vertices[static_cast<std::size_t>(k) * 997].z() += static_cast<float>(50.0 / unit);
+  for (int y = 0; y + 1 < ny; ++y)
+    for (int x = 0; x + 1 < nx; ++x) {
+      const auto i = static_cast<std::uint32_t>(y * nx + x), n = static_cast<std::uint32_t>(nx);
+      m.triangles.push_back({i, i + n + 1, i + 1});
+      m.triangles.push_back({i, i + n, i + n + 1});
+    }
+  return m;
+}
+
+TEST(Ingest, MillimetreScansAreToldFromMetreScans) {
+  struct Case {
+    const char* what;
+    double w, h, step, unit;
+    int outliers;
+    bool mm;
+  };
+  for (const Case& c :
+       {Case{"door, m", 1.0, 0.8, 0.002, 1.0, 0, false}, Case{"door, mm", 1.0, 0.8, 0.002, 1e-3, 0, true},
+        Case{"coarse door (paper), m", 1.0, 0.8, 0.0045, 1.0, 0, false},
+        Case{"roof, m, with outliers 50 m off", 2.0, 1.5, 0.005, 1.0, 40, false},
+        Case{"20 mm patch, mm", 0.02, 0.02, 0.0001, 1e-3, 0, true},
+        Case{"20 mm patch, m", 0.02, 0.02, 0.0001, 1.0, 0, false}}) {
+    SCOPED_TRACE(c.what);
+    const ScaleEvidence e = measure_scale(grid_panel(c.w, c.h, c.step, c.unit, c.outliers));
+    EXPECT_NEAR(e.spacing, c.step / c.unit, 0.01 * c.step / c.unit);
+    EXPECT_NEAR(e.extent, std::hypot(c.w, c.h) / c.unit, 0.1 * std::hypot(c.w, c.h) / c.unit);
+    EXPECT_EQ(looks_like_millimetres(e), c.mm);
+  }
 }
 
 TEST(Ingest, UnorganisedPointCloudIsMeshedInTheSensorView) {

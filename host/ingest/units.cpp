@@ -1,0 +1,61 @@
+#include "dentmark/host/ingest/units.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace dentmark::ingest {
+namespace {
+
+constexpr std::size_t kSamples = 20000;
+
+double median(std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+}  // namespace
+
+ScaleEvidence measure_scale(const MeshView& mesh) {
+  ScaleEvidence e;
+  const std::size_t nv = mesh.vertex_count();
+  if (nv > 0) {
+    // Percentiles per axis: a few outliers thrown metres away do not make the scan big.
+    std::vector<double> axis[3];
+    const std::size_t stride = std::max<std::size_t>(1, nv / kSamples);
+    for (std::size_t i = 0; i < nv; i += stride) {
+      const Eigen::Vector3f p = mesh.vertex(i);
+      if (!p.allFinite()) continue;
+      for (int a = 0; a < 3; ++a) axis[a].push_back(p[a]);
+    }
+    double d2 = 0.0;
+    for (auto& values : axis) {
+      if (values.empty()) break;
+      std::sort(values.begin(), values.end());
+      const double lo = values[values.size() * 2 / 100], hi = values[values.size() * 98 / 100];
+      d2 += (hi - lo) * (hi - lo);
+    }
+    e.extent = std::sqrt(d2);
+  }
+  const std::size_t nt = mesh.triangle_count();
+  if (nt > 0) {
+    std::vector<double> edges;
+    const std::size_t stride = std::max<std::size_t>(1, nt / kSamples);
+    for (std::size_t j = 0; j < nt; j += stride) {
+      const auto t = mesh.triangle(j);
+      const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
+      const double shortest = std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()});
+      if (std::isfinite(shortest)) edges.push_back(shortest);
+    }
+    e.spacing = median(edges);
+  }
+  return e;
+}
+
+bool looks_like_millimetres(const ScaleEvidence& e) {
+  return e.extent > 20.0 || e.spacing > 0.05;
+}
+
+}  // namespace dentmark::ingest
