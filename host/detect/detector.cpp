@@ -421,6 +421,8 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
     int ring = 0;
     double ring_ww = 0.0;  // Σ weight · w², for the ring's residual
+    Eigen::Matrix<double, 6, 1> rhs_off = Eigen::Matrix<double, 6, 1>::Zero();
+    double ring_off2 = 0.0;
     const int guard = std::max(2, static_cast<int>(std::lround(0.25 * length / h)));
     auto basis = [&](double pu, double pv) {
       const double x = (pu - cu) * sc, y = (pv - cv_) * sc;
@@ -442,24 +444,36 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
         N += wk * b * b.transpose();
         rhs += wk * map.w[k] * b;
         ring_ww += wk * static_cast<double>(map.w[k]) * map.w[k];
+        // The same ring's departure from the global reference (0 where it has none).
+        const double off = std::isfinite(ref[static_cast<std::size_t>(k)])
+                               ? map.w[k] - ref[static_cast<std::size_t>(k)]
+                               : 0.0;
+        rhs_off += wk * off * b;
+        ring_off2 += wk * off * off;
         ++ring;
       }
-    Eigen::Matrix<double, 6, 1> quad = Eigen::Matrix<double, 6, 1>::Zero();
+    Eigen::Matrix<double, 6, 1> quad = Eigen::Matrix<double, 6, 1>::Zero(), quad_off = quad;
     bool local = false;
     if (ring >= 20) {
       const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(N);
       if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 1e-8 * N(0, 0)) {
         quad = ldlt.solve(rhs);
-        local = quad.allFinite();
+        quad_off = ldlt.solve(rhs_off);
+        local = quad.allFinite() && quad_off.allFinite();
       }
     }
     // The ring's rms residual about its quadratic, against the map's deviation noise:
     // about 0.7 around a defect on a smooth panel, up to 3 with another defect's tail in
     // it, 3.7-8 on the strip between two rolled edges that no quadratic follows (measured
-    // at 0.5 mm, 40 µm noise).
+    // at 0.5 mm, 40 µm noise). Where the panel curves too fast for a quadratic across
+    // the ring (a fender's side) but the global reference follows it, the ring's
+    // departure from that reference is smooth: the smaller of the two residuals counts.
+    const auto rms_about = [&](const Eigen::Matrix<double, 6, 1>& q, const Eigen::Matrix<double, 6, 1>& r,
+                               double zz) {
+      return std::sqrt(std::max(0.0, (zz - 2.0 * q.dot(r) + q.dot(N * q)) / N(0, 0)));
+    };
     const double ring_rms =
-        local ? std::sqrt(std::max(0.0, (ring_ww - 2.0 * quad.dot(rhs) + quad.dot(N * quad)) / N(0, 0)))
-              : 0.0;
+        local ? std::min(rms_about(quad, rhs, ring_ww), rms_about(quad_off, rhs_off, ring_off2)) : 0.0;
     const bool rough_ring = ring_rms > kRoughRing * st.deviation_noise;
     const int bw = bc1 - bc0 + 1, bh = br1 - br0 + 1;
     std::vector<float> ldev(static_cast<std::size_t>(bw * bh), std::numeric_limits<float>::quiet_NaN());

@@ -72,6 +72,7 @@ ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
         }
         xa *= x;
       }
+      mo.zz += om * z * z;
     }
   return mo;
 }
@@ -89,14 +90,14 @@ void ReferenceSurface::integrate() {
                     &t = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
       for (int i = 0; i < 25; ++i) o.m[i] = a.m[i] + b.m[i] - d.m[i] + t.m[i];
       for (int i = 0; i < 9; ++i) o.h[i] = a.h[i] + b.h[i] - d.h[i] + t.h[i];
+      o.zz = a.zz + b.zz - d.zz + t.zz;
     }
 }
 
-ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
-  const double px = map_.pixel;
+ReferenceSurface::Moments ReferenceSurface::window_at(int tx, int ty, int radius) const {
   const int ic = tiles_x_ + 1;
-  const int x0 = std::max(0, tx - radius_), x1 = std::min(tiles_x_, tx + radius_ + 1),
-            y0 = std::max(0, ty - radius_), y1 = std::min(tiles_y_, ty + radius_ + 1);
+  const int x0 = std::max(0, tx - radius), x1 = std::min(tiles_x_, tx + radius + 1),
+            y0 = std::max(0, ty - radius), y1 = std::min(tiles_y_, ty + radius + 1);
   Moments win;
   const Moments &A = integral_[static_cast<std::size_t>(y1) * ic + x1],
                 &B = integral_[static_cast<std::size_t>(y0) * ic + x1],
@@ -104,6 +105,29 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
                 &D = integral_[static_cast<std::size_t>(y0) * ic + x0];
   for (int i = 0; i < 25; ++i) win.m[i] = A.m[i] - B.m[i] - C.m[i] + D.m[i];
   for (int i = 0; i < 9; ++i) win.h[i] = A.h[i] - B.h[i] - C.h[i] + D.h[i];
+  win.zz = A.zz - B.zz - C.zz + D.zz;
+  return win;
+}
+
+// Where the panel curves too fast for a quadratic over the whole window (a fender's
+// side, 50-60 degrees to the map plane, turns by 20 degrees across it), the fit over half
+// the window has a far smaller residual: noise leaves both the same, and a defect (or a
+// handle) in the window raises the half window's more. Then the half window's fit is
+// used. The choice depends on the window's sums alone, so a refit still equals a fit
+// from scratch.
+ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
+  double whole = 0.0, half = 0.0;
+  Quadratic q = solve(window_at(tx, ty, radius_), tx, ty, whole);
+  if (radius_ >= 2 && q.ok) {
+    Quadratic small = solve(window_at(tx, ty, radius_ / 2), tx, ty, half);
+    if (small.ok && whole > 2.0 * half) q = small;
+  }
+  return q;
+}
+
+ReferenceSurface::Quadratic ReferenceSurface::solve(const Moments& win, int tx, int ty,
+                                                    double& mean_square) const {
+  const double px = map_.pixel;
   Quadratic q;
   q.cu = map_.u0 + (tx * tile_ + 0.5 * tile_) * px;
   q.cv = map_.v0 + (ty * tile_ + 0.5 * tile_) * px;
@@ -149,6 +173,8 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
       q.ok = q.c.allFinite();
     }
   }
+  // At the least-squares solution Σ ω (z - f)² = Σ ω z² - c . rhs.
+  mean_square = q.ok ? std::max(0.0, win.zz - q.c.dot(rhs)) / w0 : 0.0;
   return q;
 }
 

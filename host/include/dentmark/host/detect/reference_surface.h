@@ -32,6 +32,7 @@ class ReferenceSurface {
   struct Moments {
     std::array<double, 25> m{};  // m[a * 5 + b]
     std::array<double, 9> h{};   // h[a * 3 + b]
+    double zz = 0.0;             // Σ ω z², for the fit's residual
   };
   // The quadratic fitted at a tile centre, over local coordinates scaled by the window.
   struct Quadratic {
@@ -43,6 +44,11 @@ class ReferenceSurface {
   Moments tile_moments(int tx, int ty, const std::vector<float>& weights) const;
   void integrate();
   Quadratic fit_at(int tx, int ty) const;
+  // The window sums of tiles within `radius` of (tx, ty).
+  Moments window_at(int tx, int ty, int radius) const;
+  // The quadratic (or plane) fitted to window sums about tile (tx, ty)'s centre, and its
+  // weighted mean squared residual.
+  Quadratic solve(const Moments& win, int tx, int ty, double& mean_square) const;
   void blend(int ty, int tx0, int tx1);  // the pixels of tiles [tx0, tx1) of tile row ty
 
   const HeightMap& map_;
