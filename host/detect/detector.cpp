@@ -173,7 +173,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   // to the candidates, which change from one fit to the next, they come back into every
   // other fit and pull it by their weight times their distance (a 10 mm spike moves a
   // whole window's reference by ~0.1 mm).
-  cv::Mat off_skin(rows, cols, CV_8U, cv::Scalar(0));
+  cv::Mat off_skin(rows, cols, CV_8U, cv::Scalar(0)), grown;
   std::vector<double> scale_sigma(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
@@ -199,15 +199,17 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       dz.copyTo(dm);
     float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
     const float* dmp = dm.ptr<float>();
-    std::uint8_t* sp = spike.ptr<std::uint8_t>();
+    std::uint8_t *sp = spike.ptr<std::uint8_t>(), *osk = off_skin.ptr<std::uint8_t>();
     const auto spike_height =
         static_cast<float>(std::max(cfg.detection_sigma * st.deviation_noise, 0.5 * cfg.min_height));
+    const auto far_off = static_cast<float>(cfg.hole_depth);
 #pragma omp parallel for schedule(static)
     for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
       // A spike stands out of its neighbourhood by more than the neighbourhood stands out
       // of the reference; a narrow defect's apex (its neighbours deep too) does not.
       const float off = std::abs(dzp[k] - dmp[k]);
       sp[k] = vp[k] && off > spike_height && off > 2.0f * std::abs(dmp[k]) ? 255 : 0;
+      osk[k] |= sp[k] | (std::abs(d[k]) > far_off ? 255 : 0);  // NaN compares false
       wdm[k] = wvp[k] * dmp[k];
     }
     cand.create(rows, cols, CV_8U);
@@ -226,13 +228,12 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
         cp[q] |= (vp[q] && std::abs(rs[q]) > thr) ? 255 : 0;
     }
     if (it + 1 < iterations) {
-      cv::Mat far_off;
-      cv::compare(cv::abs(dev), cfg.hole_depth, far_off, cv::CMP_GT);  // NaN compares false
-      off_skin |= spike | far_off;
-      cv::Mat grown;
-      cv::dilate(cand | off_skin, grown, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
+      cand |= off_skin;  // (this iteration's candidates are not needed after this)
+      cv::dilate(cand, grown, cv::getStructuringElement(cv::MORPH_RECT, {5, 5}));
       const std::uint8_t* g = grown.ptr<std::uint8_t>();
-      for (std::size_t k = 0; k < map.size(); ++k) ref_weights[k] = g[k] ? 0.0f : map.weight[k];
+#pragma omp parallel for schedule(static)
+      for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+        ref_weights[k] = g[k] ? 0.0f : map.weight[k];
     }
   }
   lap("reference");
