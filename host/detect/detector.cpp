@@ -473,17 +473,26 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
                                double zz) {
       return std::sqrt(std::max(0.0, (zz - 2.0 * q.dot(r) + q.dot(N * q)) / N(0, 0)));
     };
-    const double ring_rms =
-        local ? std::min(rms_about(quad, rhs, ring_ww), rms_about(quad_off, rhs_off, ring_off2)) : 0.0;
+    const double rms_own = local ? rms_about(quad, rhs, ring_ww) : 0.0,
+                 rms_off = local ? rms_about(quad_off, rhs_off, ring_off2) : 0.0;
+    const double ring_rms = std::min(rms_own, rms_off);
     const bool rough_ring = ring_rms > kRoughRing * st.deviation_noise;
+    // The local reference: the ring's own quadratic, or (where the global reference with a
+    // quadratic correction describes the ring clearly better: a fender's side, where the
+    // ring's own quadratic was 40 µm off under the apex) that.
+    const bool on_global = local && rms_off < 0.8 * rms_own;
+    const auto local_ref = [&](double pu, double pv) {
+      if (!local) return std::numeric_limits<double>::quiet_NaN();
+      return on_global ? reference.height_at(pu, pv) + basis(pu, pv).dot(quad_off) : basis(pu, pv).dot(quad);
+    };
     const int bw = bc1 - bc0 + 1, bh = br1 - br0 + 1;
     std::vector<float> ldev(static_cast<std::size_t>(bw * bh), std::numeric_limits<float>::quiet_NaN());
     for (int r = br0; r <= br1; ++r)
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
         if (!(map.weight[k] > 0.0f) || spike.data[k]) continue;  // spikes: never the peak, never measured
-        const double refw = local ? basis(map.u[k], map.v[k]).dot(quad)
-                                  : static_cast<double>(ref[static_cast<std::size_t>(k)]);
+        const double refw =
+            local ? local_ref(map.u[k], map.v[k]) : static_cast<double>(ref[static_cast<std::size_t>(k)]);
         if (std::isfinite(refw))
           ldev[static_cast<std::size_t>((r - br0) * bw + (c - bc0))] =
               static_cast<float>((map.w[k] - refw) * map.cos_tilt[k]);
@@ -588,7 +597,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
           pts.clear();
           samples.append(k, pts);
           for (const auto& q : pts) {
-            const double refw = local ? basis(q.x(), q.y()).dot(quad) : static_cast<double>(ref[k]);
+            const double refw = local ? local_ref(q.x(), q.y()) : static_cast<double>(ref[k]);
             near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[k]});
           }
         }
@@ -613,7 +622,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
         const Eigen::Vector3d q = map.to_map(mesh.vertex(i).cast<double>());
         const long k = map.pixel_of(q.x(), q.y());
         if (k < 0 || labels.at<int>(static_cast<int>(k / cols), static_cast<int>(k % cols)) != ci) continue;
-        const double dv = (q.z() - basis(q.x(), q.y()).dot(quad)) * map.cos_tilt[static_cast<std::size_t>(k)];
+        const double dv = (q.z() - local_ref(q.x(), q.y())) * map.cos_tilt[static_cast<std::size_t>(k)];
         if (sign * dv > best) best = sign * dv, pos = q;
       }
       if (best > std::abs(height)) height = sign * best;

@@ -276,6 +276,28 @@ void ReferenceSurface::blend(int ty, int tx0, int tx1) {
   }
 }
 
+double ReferenceSurface::height_at(double u, double v) const {
+  if (fits_.empty()) return std::numeric_limits<double>::quiet_NaN();
+  // As blend(): the fits at tiles (iy + dy, ix + dx), weighted bilinearly (+ 1e-9).
+  const double fy = (v - map_.v0) / (map_.pixel * tile_) - 0.5,
+               fx = (u - map_.u0) / (map_.pixel * tile_) - 0.5;
+  const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
+  const double ay = fy - iy, ax = fx - ix;
+  double sum = 0.0, wsum = 0.0;
+  for (int n = 0; n < 4; ++n) {
+    const int dy = n / 2, dx = n % 2;
+    const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + dy, 0, tiles_y_ - 1)) * tiles_x_ +
+                               std::clamp(ix + dx, 0, tiles_x_ - 1)];
+    if (!q.ok) continue;
+    const double w = (dy ? ay : 1.0 - ay) * (dx ? ax : 1.0 - ax) + 1e-9;
+    const double x = (u - q.cu) * local_scale_, y = (v - q.cv) * local_scale_;
+    const auto& c = q.c;
+    sum += w * (c(0) + c(1) * x + c(2) * y + c(3) * x * x + c(4) * x * y + c(5) * y * y);
+    wsum += w;
+  }
+  return wsum > 0.0 ? sum / wsum : std::numeric_limits<double>::quiet_NaN();
+}
+
 const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weights) {
   const std::size_t tiles = static_cast<std::size_t>(tiles_x_) * tiles_y_;
   // The tiles whose weights changed since the last fit (all, the first time).

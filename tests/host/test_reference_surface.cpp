@@ -71,6 +71,24 @@ TEST(ReferenceSurface, FollowsAPanelThatTurnsTooFastForAQuadraticOverTheWindow) 
   }
 }
 
+TEST(ReferenceSurface, HeightAtAnyPointIsThePixelsBlend) {
+  // At a pixel's own point it is the pixel's value; between pixels it follows the panel
+  // (the vertex samples of a defect are measured against it).
+  const HeightMap map = map_of(panel);
+  ReferenceSurface surface(map, 0.064);
+  const std::vector<float>& ref = surface.fit(map.weight);
+  for (std::size_t k = 0; k < map.size(); k += 37)
+    ASSERT_NEAR(surface.height_at(map.u[k], map.v[k]), ref[k], 2e-7) << k;
+  for (double u = -0.095; u < 0.095; u += 0.0073)
+    for (double v = -0.07; v < 0.07; v += 0.0061) ASSERT_NEAR(surface.height_at(u, v), panel(u, v), 2e-7);
+  const HeightMap steep =
+      map_of([](double u, double) { return std::sqrt(0.33 * 0.33 - (u + 0.18) * (u + 0.18)); });
+  ReferenceSurface fender(steep, 0.064);
+  fender.fit(steep.weight);
+  for (double u = -0.08; u < 0.0; u += 0.0037)  // slopes 16-33 degrees
+    EXPECT_NEAR(fender.height_at(u, 0.01), std::sqrt(0.33 * 0.33 - (u + 0.18) * (u + 0.18)), 2e-6) << u;
+}
+
 TEST(ReferenceSurface, PixelsLeftOutDoNotPullIt) {
   const HeightMap map = map_of([](double u, double v) { return panel(u, v) + bump(u, v); });
   ReferenceSurface surface(map, 0.064);

@@ -26,6 +26,10 @@ class ReferenceSurface {
   // weights: per pixel, 0 leaves the pixel out. Same size as the map.
   const std::vector<float>& fit(const std::vector<float>& weights);
 
+  // The last fit's reference height at any point (u, v) of the map plane (m): the blend of
+  // the four nearest tile fits, as at a pixel. NaN where no fit is near.
+  double height_at(double u, double v) const;
+
  private:
   // Moments of a tile or window: Σ ω x^a y^b (a + b <= 4) and Σ ω z x^a y^b (a + b <= 2)
   // in coordinates scaled to about [-1, 1].
