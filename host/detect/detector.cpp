@@ -49,13 +49,22 @@ double measure_spacing(const ingest::MeshView& mesh) {
 
 // Robust sigma (1.4826 MAD) of the finite, selected values, sampled.
 double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
-  std::vector<double> s;
-  // 60 k samples: the MAD to ~0.5 %, at a fifth of the cost of 300 k.
+  // 60 k samples: the MAD to ~0.5 %, at a fifth of the cost of 300 k. Gathered in two
+  // halves side by side (the strided reads touch every cache line of both images), kept
+  // in order: the same sample whatever the thread count.
   const std::size_t total = values.total(), stride = std::max<std::size_t>(1, total / 60000);
+  const std::size_t picks = (total + stride - 1) / stride;
   const float* v = values.ptr<float>();
   const std::uint8_t* m = select.ptr<std::uint8_t>();
-  for (std::size_t i = 0; i < total; i += stride)
-    if (m[i] && std::isfinite(v[i])) s.push_back(v[i]);
+  std::vector<double> half[2];
+#pragma omp parallel for schedule(static) num_threads(2)
+  for (int part = 0; part < 2; ++part)
+    for (std::size_t j = picks * part / 2; j < picks * (part + 1) / 2; ++j) {
+      const std::size_t i = j * stride;
+      if (m[i] && std::isfinite(v[i])) half[part].push_back(v[i]);
+    }
+  std::vector<double> s = std::move(half[0]);
+  s.insert(s.end(), half[1].begin(), half[1].end());
   if (s.size() < 10) return 0.0;
   const double med = median_of(s);
   for (auto& x : s) x = std::abs(x - med);

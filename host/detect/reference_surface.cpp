@@ -306,12 +306,17 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
 #pragma omp parallel for schedule(dynamic, 4)
     for (int ty = 0; ty < tiles_y_; ++ty)
       for (int tx = 0; tx < tiles_x_; ++tx) {
+        // Compared and, where they differ, taken over (no serial copy of the whole image).
         bool differs = false;
-        for (int r = ty * tile_; r < std::min(map_.rows, (ty + 1) * tile_) && !differs; ++r) {
+        const int c0 = tx * tile_, c1 = std::min(map_.cols, (tx + 1) * tile_);
+        for (int r = ty * tile_; r < std::min(map_.rows, (ty + 1) * tile_); ++r) {
           const std::size_t row = static_cast<std::size_t>(r) * map_.cols;
-          for (int c = tx * tile_; c < std::min(map_.cols, (tx + 1) * tile_); ++c)
-            differs = differs || weights[row + c] != weights_[row + c];
+          if (!differs)
+            for (int c = c0; c < c1; ++c) differs = differs || weights[row + c] != weights_[row + c];
+          if (differs)
+            std::copy(weights.begin() + row + c0, weights.begin() + row + c1, weights_.begin() + row + c0);
         }
+        // (Rows before the first difference were equal already.)
         changed[static_cast<std::size_t>(ty) * tiles_x_ + tx] = differs;
       }
     if (std::none_of(changed.begin(), changed.end(), [](std::uint8_t b) { return b != 0; })) return ref_;
@@ -319,8 +324,8 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
     tiles_.resize(tiles);
     fits_.resize(tiles);
     ref_.assign(map_.size(), std::numeric_limits<float>::quiet_NaN());
+    weights_ = weights;
   }
-  weights_ = weights;
 
   const std::vector<int> moments = marked_list(changed);
 #pragma omp parallel for schedule(dynamic, 16)
