@@ -20,6 +20,7 @@
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/detect/reference_surface.h"
+#include "dentmark/host/ingest/units.h"
 #include "holes.h"
 #include "median.h"
 
@@ -32,20 +33,6 @@ using Clock = std::chrono::steady_clock;
 // times the map's deviation noise is not on a smooth panel: it cannot be measured as a
 // dent there, and is taken as part of the design around it.
 constexpr double kRoughRing = 3.5;
-
-// Median edge length over a sample of triangles: the scan's point spacing.
-double measure_spacing(const ingest::MeshView& mesh) {
-  const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
-  std::vector<double> e((n + stride - 1) / stride);
-#pragma omp parallel for schedule(static)
-  for (std::size_t j = 0; j < e.size(); ++j) {
-    const auto t = mesh.triangle(j * stride);
-    const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
-    // Shortest edge: on grid meshes the others are diagonals.
-    e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
-  }
-  return median_of(std::move(e));
-}
 
 // Robust sigma (1.4826 MAD) of the finite, selected values, sampled.
 double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
@@ -89,7 +76,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
   DetectionStats& st = out.stats;
   st.vertices = mesh.vertex_count();
   st.triangles = mesh.triangle_count();
-  st.spacing = measure_spacing(mesh);
+  st.spacing = ingest::point_spacing(mesh);
   const double h = std::max(cfg.finest_node_size, 2.0 * st.spacing);
   st.leaf_size = h;
 

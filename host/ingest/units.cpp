@@ -39,19 +39,20 @@ ScaleEvidence measure_scale(const MeshView& mesh) {
     }
     e.extent = std::sqrt(d2);
   }
-  const std::size_t nt = mesh.triangle_count();
-  if (nt > 0) {
-    std::vector<double> edges;
-    const std::size_t stride = std::max<std::size_t>(1, nt / kSamples);
-    for (std::size_t j = 0; j < nt; j += stride) {
-      const auto t = mesh.triangle(j);
-      const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
-      const double shortest = std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()});
-      if (std::isfinite(shortest)) edges.push_back(shortest);
-    }
-    e.spacing = median(edges);
-  }
+  e.spacing = point_spacing(mesh);
   return e;
+}
+
+double point_spacing(const MeshView& mesh) {
+  const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
+  std::vector<double> e((n + stride - 1) / stride);
+#pragma omp parallel for schedule(static)
+  for (std::size_t j = 0; j < e.size(); ++j) {
+    const auto t = mesh.triangle(j * stride);
+    const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
+    e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
+  }
+  return median(e);
 }
 
 bool looks_like_millimetres(const ScaleEvidence& e) {

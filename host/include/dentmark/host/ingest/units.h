@@ -15,6 +15,10 @@ struct ScaleEvidence {
 
 ScaleEvidence measure_scale(const MeshView& mesh);
 
+// The scan's point spacing: the median shortest edge of ~50 000 sampled triangles (on
+// grid meshes the other edges are diagonals); 0 without triangles.
+double point_spacing(const MeshView& mesh);
+
 // Whether a scan read as metres is in millimetres: no body panel is over 20 m across or
 // sampled over 5 cm apart, and no millimetre scan of one is under 20 mm across with
 // samples under 0.05 mm apart.
