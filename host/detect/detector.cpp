@@ -23,6 +23,7 @@
 #include "dentmark/host/ingest/units.h"
 #include "holes.h"
 #include "median.h"
+#include "threads.h"
 
 namespace dentmark::detect {
 namespace {
@@ -44,7 +45,7 @@ double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
   const float* v = values.ptr<float>();
   const std::uint8_t* m = select.ptr<std::uint8_t>();
   std::vector<double> half[2];
-#pragma omp parallel for schedule(static) num_threads(2)
+#pragma omp parallel for schedule(static) num_threads(std::min(2, detail::thread_count()))
   for (int part = 0; part < 2; ++part)
     for (std::size_t j = picks * part / 2; j < picks * (part + 1) / 2; ++j) {
       const std::size_t i = j * stride;
@@ -477,8 +478,8 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     // quadratic correction describes the ring clearly better: a fender's side, where the
     // ring's own quadratic was 40 µm off under the apex) that.
     const bool on_global = local && rms_off < 0.8 * rms_own;
-    const auto local_ref = [&](double pu, double pv) {
-      if (!local) return std::numeric_limits<double>::quiet_NaN();
+    const auto local_ref = [&](double pu, double pv, std::size_t k) -> double {
+      if (!local) return ref[k];  // too little clean ring: the global reference
       return on_global ? reference.height_at(pu, pv) + basis(pu, pv).dot(quad_off) : basis(pu, pv).dot(quad);
     };
     const int bw = bc1 - bc0 + 1, bh = br1 - br0 + 1;
@@ -487,8 +488,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
       for (int c = bc0; c <= bc1; ++c) {
         const int k = r * cols + c;
         if (!(map.weight[k] > 0.0f) || spike.data[k]) continue;  // spikes: never the peak, never measured
-        const double refw =
-            local ? local_ref(map.u[k], map.v[k]) : static_cast<double>(ref[static_cast<std::size_t>(k)]);
+        const double refw = local_ref(map.u[k], map.v[k], static_cast<std::size_t>(k));
         if (std::isfinite(refw))
           ldev[static_cast<std::size_t>((r - br0) * bw + (c - bc0))] =
               static_cast<float>((map.w[k] - refw) * map.cos_tilt[k]);
@@ -593,7 +593,7 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
           pts.clear();
           samples.append(k, pts);
           for (const auto& q : pts) {
-            const double refw = local ? local_ref(q.x(), q.y()) : static_cast<double>(ref[k]);
+            const double refw = local_ref(q.x(), q.y(), static_cast<std::size_t>(k));
             near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[k]});
           }
         }
@@ -618,7 +618,8 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
         const Eigen::Vector3d q = map.to_map(mesh.vertex(i).cast<double>());
         const long k = map.pixel_of(q.x(), q.y());
         if (k < 0 || labels.at<int>(static_cast<int>(k / cols), static_cast<int>(k % cols)) != ci) continue;
-        const double dv = (q.z() - local_ref(q.x(), q.y())) * map.cos_tilt[static_cast<std::size_t>(k)];
+        const double dv = (q.z() - local_ref(q.x(), q.y(), static_cast<std::size_t>(k))) *
+                          map.cos_tilt[static_cast<std::size_t>(k)];
         if (sign * dv > best) best = sign * dv, pos = q;
       }
       if (best > std::abs(height)) height = sign * best;
