@@ -55,25 +55,37 @@ ReferenceSurface::ReferenceSurface(const HeightMap& map, double window) : map_(m
 
 ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
                                                          const std::vector<float>& weights) const {
-  Moments mo;
+  // The sums in local variables (registers), term by term in the same order as the
+  // definition: Σ ω x^a y^b with x^a y^b formed as ((ω x^a) y) y ...
+  double m[15] = {}, hz[6] = {}, zz = 0.0;
   for (int r = ty * tile_; r < std::min(map_.rows, (ty + 1) * tile_); ++r)
     for (int c = tx * tile_; c < std::min(map_.cols, (tx + 1) * tile_); ++c) {
       const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
       const double om = weights[k];
       if (!(om > 0.0)) continue;
       const double x = (map_.u[k] - gu_) * gs_, y = (map_.v[k] - gv_) * gs_, z = map_.w[k];
-      double xa = om;
-      for (int a = 0; a <= 4; ++a) {
-        double xy = xa;
-        for (int b = 0; a + b <= 4; ++b) {
-          mo.m[a * 5 + b] += xy;
-          if (a + b <= 2) mo.h[a * 3 + b] += xy * z;
-          xy *= y;
-        }
-        xa *= x;
-      }
-      mo.zz += om * z * z;
+      const double x0 = om, x1 = x0 * x, x2 = x1 * x, x3 = x2 * x, x4 = x3 * x;
+      const double x0y1 = x0 * y, x0y2 = x0y1 * y, x0y3 = x0y2 * y, x0y4 = x0y3 * y;
+      const double x1y1 = x1 * y, x1y2 = x1y1 * y, x1y3 = x1y2 * y;
+      const double x2y1 = x2 * y, x2y2 = x2y1 * y;
+      const double x3y1 = x3 * y;
+      m[0] += x0, m[1] += x0y1, m[2] += x0y2, m[3] += x0y3, m[4] += x0y4;
+      m[5] += x1, m[6] += x1y1, m[7] += x1y2, m[8] += x1y3;
+      m[9] += x2, m[10] += x2y1, m[11] += x2y2;
+      m[12] += x3, m[13] += x3y1;
+      m[14] += x4;
+      hz[0] += x0 * z, hz[1] += x0y1 * z, hz[2] += x0y2 * z;
+      hz[3] += x1 * z, hz[4] += x1y1 * z;
+      hz[5] += x2 * z;
+      zz += om * z * z;
     }
+  Moments mo;
+  static constexpr int ma[15] = {0, 0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 3, 3, 4};
+  static constexpr int mb[15] = {0, 1, 2, 3, 4, 0, 1, 2, 3, 0, 1, 2, 0, 1, 0};
+  for (int i = 0; i < 15; ++i) mo.m[ma[i] * 5 + mb[i]] = m[i];
+  static constexpr int ha[6] = {0, 0, 0, 1, 1, 2}, hb[6] = {0, 1, 2, 0, 1, 0};
+  for (int i = 0; i < 6; ++i) mo.h[ha[i] * 3 + hb[i]] = hz[i];
+  mo.zz = zz;
   return mo;
 }
 

@@ -30,6 +30,9 @@ class ReferenceSurface {
   // the four nearest tile fits, as at a pixel. NaN where no fit is near.
   double height_at(double u, double v) const;
 
+  // The last fit's heights per pixel (as fit() returned them).
+  const std::vector<float>& heights() const { return ref_; }
+
  private:
   // Moments of a tile or window: Σ ω x^a y^b (a + b <= 4) and Σ ω z x^a y^b (a + b <= 2)
   // in coordinates scaled to about [-1, 1].

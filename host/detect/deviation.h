@@ -1,0 +1,34 @@
+#pragma once
+// The height map's deviation from a robust reference surface (docs/detection.md §4).
+// The reference is fitted, the pixels that stand out of it at any detection scale (and
+// those found off the skin: outlier spikes, a hole's backdrop) are left out, and it is
+// fitted again, cfg.reference_iterations times in all. Thresholds adapt to the noise
+// measured on the deviation itself.
+
+#include <opencv2/core/mat.hpp>
+#include <vector>
+
+#include "dentmark/host/detect/config.h"
+#include "dentmark/host/detect/height_map.h"
+#include "dentmark/host/detect/reference_surface.h"
+
+namespace dentmark::detect {
+
+// The detection scales for a map of this pixel size (m): box sides of 3, 7 and 15 mm in
+// pixels, odd and distinct, for dents of 5 mm and up.
+std::vector<int> detection_scales(double pixel);
+
+struct Deviation {
+  cv::Mat along_normal;             // CV_32F: from the reference along the normal (m), NaN where none
+  cv::Mat candidates;               // CV_8U: 255 where some scale's box mean is over its threshold
+  cv::Mat spikes;                   // CV_8U: 255 on outlier spikes
+  double noise = 0.0;               // robust sigma of along_normal over the interior (m)
+  std::vector<double> scale_sigma;  // per scale: robust sigma of its box mean (m)
+};
+
+// interior: CV_8U, non-zero on the pixels whose statistics set the thresholds (away
+// from borders and openings). 'reference' is left holding the last fit.
+Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& reference, const cv::Mat& interior,
+                                   const std::vector<int>& scales, const DetectConfig& cfg);
+
+}  // namespace dentmark::detect

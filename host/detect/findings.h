@@ -1,0 +1,25 @@
+#pragma once
+// Findings as reported: through-holes turned into findings, and the final order of the
+// defect list.
+
+#include <opencv2/core/mat.hpp>
+#include <vector>
+
+#include "dentmark/host/detect/detector.h"
+#include "holes.h"
+
+namespace dentmark::detect {
+
+// A through-hole as a defect: its centre on the reference surface 'ref' (or, where no
+// see-through pixel carries it, on the skin around), its normal from the skin around it
+// (hole_zone: CV_8U, the holes and their rims, left out), its equivalent diameter.
+Finding hole_finding(const HoleRegion& hole, const HeightMap& map, const std::vector<float>& ref,
+                     const cv::Mat& hole_zone, double normal_patch);
+
+// Defects most confident first. One defect split into two candidates (by a dropout, say)
+// is reported once: a less confident report of the same class whose centre lies inside
+// a kept one's half-diameter joins it. Ids run from 1 over the defects, then the
+// features. On entry each defect's id is its index in detection.labels; labels follow.
+void order_findings(Detection& detection);
+
+}  // namespace dentmark::detect
