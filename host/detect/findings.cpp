@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <numbers>
+#include <stdexcept>
 #include <utility>
 
 #include "patch_normal.h"
@@ -57,8 +58,11 @@ void order_findings(Detection& out) {
                    [](const Finding& a, const Finding& b) { return a.defect.score > b.defect.score; });
   {  // labels hold pre-sort indices (kept in id until now)
     std::vector<std::int32_t> old_to_new(out.defects.size());
-    for (std::size_t i = 0; i < out.defects.size(); ++i)
+    for (std::size_t i = 0; i < out.defects.size(); ++i) {
+      if (out.defects[i].defect.id >= out.defects.size())
+        throw std::logic_error("order_findings: a defect's id is not its index");
       old_to_new[out.defects[i].defect.id] = static_cast<std::int32_t>(i);
+    }
     for (auto& l : out.labels)
       if (l >= 0) l = old_to_new[static_cast<std::size_t>(l)];
   }

@@ -17,9 +17,10 @@ Finding hole_finding(const HoleRegion& hole, const HeightMap& map, const std::ve
                      const cv::Mat& hole_zone, double normal_patch);
 
 // Defects most confident first. One defect split into two candidates (by a dropout, say)
-// is reported once: a less confident report of the same class whose centre lies inside
-// a kept one's half-diameter joins it. Ids run from 1 over the defects, then the
-// features. On entry each defect's id is its index in detection.labels; labels follow.
+// is reported once: a less confident report of the same class whose centre lies within
+// half the larger of the two diameters of a kept one joins it. Ids run from 1 over the
+// defects, then the features. On entry each defect's id is its index in
+// detection.labels (0 .. defects - 1; std::logic_error otherwise); labels follow.
 void order_findings(Detection& detection);
 
 }  // namespace dentmark::detect
