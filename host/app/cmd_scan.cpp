@@ -120,10 +120,11 @@ int run_detect(const DetectArgs& a) {
   if (a.verbose) {
     const auto& s = det.stats;
     std::printf(
-        "scan: spacing %.3f mm, finest node %.3f mm (depth %d), %zu leaves, normal noise floor %.3f, "
-        "%zu feature leaves in %zu groups, deviation noise %.1f um, working memory %.1f B/triangle\n",
-        1e3 * s.spacing, 1e3 * s.leaf_size, s.depth, s.leaves, s.noise_floor_sigma, s.feature_leaves,
-        s.feature_groups, 1e6 * s.deviation_noise,
+        "scan: spacing %.3f mm, finest node %.3f mm (depth %d), %zu leaves, normal noise floor %.3f "
+        "(spread %.3f, leaf threshold %.3f), %zu feature leaves in %zu groups, deviation noise %.1f um, "
+        "working memory %.1f B/triangle\n",
+        1e3 * s.spacing, 1e3 * s.leaf_size, s.depth, s.leaves, s.noise_floor_sigma, s.noise_floor_spread,
+        s.leaf_sigma_threshold, s.feature_leaves, s.feature_groups, 1e6 * s.deviation_noise,
         static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
     struct rusage usage {};
     ::getrusage(RUSAGE_SELF, &usage);

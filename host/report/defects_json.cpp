@@ -121,6 +121,8 @@ nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& s
                {"octree_depth", s.depth},
                {"leaves", s.leaves},
                {"normal_noise_floor", s.noise_floor_sigma},
+               {"normal_noise_spread", s.noise_floor_spread},
+               {"leaf_sigma_threshold", s.leaf_sigma_threshold},
                {"feature_leaves", s.feature_leaves},
                {"feature_groups", s.feature_groups},
                {"deviation_noise", s.deviation_noise}};

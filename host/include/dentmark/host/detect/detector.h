@@ -18,12 +18,14 @@ namespace dentmark::detect {
 
 struct DetectionStats {
   std::size_t vertices = 0, triangles = 0;
-  double surface_area = 0.0;       // m²
-  double spacing = 0.0;            // m, median edge length
-  double leaf_size = 0.0;          // m, finest node edge used
-  int depth = 0;                   // octree depth
-  std::size_t leaves = 0;          // occupied finest nodes
-  double noise_floor_sigma = 0.0;  // median leaf normal spread (eq. 3)
+  double surface_area = 0.0;          // m²
+  double spacing = 0.0;               // m, median edge length
+  double leaf_size = 0.0;             // m, finest node edge used
+  int depth = 0;                      // octree depth
+  std::size_t leaves = 0;             // occupied finest nodes
+  double noise_floor_sigma = 0.0;     // median leaf normal spread (eq. 3)
+  double noise_floor_spread = 0.0;    // its robust sigma (1.4826 MAD) over the leaves
+  double leaf_sigma_threshold = 0.0;  // a feature leaf's spread exceeds this (eq. 3)
   std::size_t feature_leaves = 0, feature_groups = 0;
   double deviation_noise = 0.0;   // m, robust sigma of the per-pixel deviation
   std::size_t working_bytes = 0;  // memory beyond the mesh
