@@ -3,8 +3,11 @@ include(GoogleTest)
 # dentmark_add_test(<name> SOURCES ... LIBS ...)
 # A GoogleTest executable whose cases are discovered when ctest runs (PRE_TEST), so
 # cross builds never execute target binaries at build time.
+# REAL_TIME: the program's tests hold real-time bounds (an e-stop closes the valve within
+# 10 ms of wall time); they run alone, not beside a detection test that keeps both cores
+# busy.
 function(dentmark_add_test name)
-  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(ARG "REAL_TIME" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main GTest::gmock dentmark_options)
   target_compile_definitions(${name} PRIVATE DENTMARK_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
@@ -12,8 +15,14 @@ function(dentmark_add_test name)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()
-  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120
-                       PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}")
+  set(properties TIMEOUT ${ARG_TIMEOUT})
+  if(ARG_LABELS)
+    list(APPEND properties LABELS "${ARG_LABELS}")
+  endif()
+  if(ARG_REAL_TIME)
+    list(APPEND properties RUN_SERIAL TRUE)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120 PROPERTIES ${properties})
 endfunction()
 
 # dentmark_add_benchmark(<name> SOURCES ... LIBS ...): a Google Benchmark program (not a test).
