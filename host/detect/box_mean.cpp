@@ -1,5 +1,7 @@
 #include "box_mean.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cstdint>
 #include <limits>
@@ -10,7 +12,9 @@ namespace dentmark::detect {
 
 // Both sums in one pass of running sums: column sums over the window's rows, moved down
 // a row at a time, then row sums over the window's columns. Bands of rows go to the
-// threads; sums are kept in double, so running them costs no precision.
+// threads; sums are kept in double, so running them costs no precision. The row sums
+// are a chain of dependent additions: two rows are run side by side, so that one row's
+// additions fill the other's wait.
 void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_weight, cv::Mat& out) {
   if (values.type() != CV_32F || weights.type() != CV_32F || values.size() != weights.size() || k < 1 ||
       k % 2 == 0 || !values.isContinuous() || !weights.isContinuous())
@@ -23,33 +27,70 @@ void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_we
   const float nan = std::numeric_limits<float>::quiet_NaN();
 #pragma omp parallel
   {
-    std::vector<double> col_v(static_cast<std::size_t>(cols) + k, 0.0), col_w(col_v.size(), 0.0);
-    // Column c's sums at index c + h, zeros on both sides for the window's overhang.
-    double* cv_ = col_v.data() + h;
-    double* cw = col_w.data() + h;
-    const auto add_row = [&](int r, double sign) {
+    // Column sums of two consecutive rows, column c at index c + h, zeros on both sides
+    // for the window's overhang.
+    std::vector<double> buf(4 * (static_cast<std::size_t>(cols) + k), 0.0);
+    const std::size_t stride = static_cast<std::size_t>(cols) + k;
+    double* sv[2] = {buf.data() + h, buf.data() + stride + h};
+    double* sw[2] = {buf.data() + 2 * stride + h, buf.data() + 3 * stride + h};
+    const auto add_row = [&](double* cv_, double* cw, int r, double sign) {
       if (r < 0 || r >= rows) return;
       const float* v = val + static_cast<std::ptrdiff_t>(r) * cols;
       const float* w = wgt + static_cast<std::ptrdiff_t>(r) * cols;
       for (int c = 0; c < cols; ++c) cv_[c] += sign * v[c], cw[c] += sign * w[c];
     };
-    bool started = false;
-#pragma omp for schedule(static)
-    for (int r = 0; r < rows; ++r) {
-      if (!started) {  // the first row of this thread's band: its window's rows
-        for (int rr = r - h; rr <= r + h; ++rr) add_row(rr, 1.0);
-        started = true;
-      } else {
-        add_row(r + h, 1.0);
-        add_row(r - h - 1, -1.0);
+    // The next row's column sums from this row's: the same additions, in the same
+    // order, as moving one set down a row.
+    const auto next_row = [&](int from, int r) {
+      const int to = 1 - from;
+      std::copy(sv[from] - h, sv[from] - h + stride, sv[to] - h);
+      std::copy(sw[from] - h, sw[from] - h + stride, sw[to] - h);
+      add_row(sv[to], sw[to], r + h, 1.0);
+      add_row(sv[to], sw[to], r - h - 1, -1.0);
+    };
+    const auto emit = [&](int n, int first, int r) {  // rows r .. r + n - 1 from sets first, 1 - first
+      double a[2] = {0.0, 0.0}, b[2] = {0.0, 0.0};
+      const double* cv0 = sv[first];
+      const double* cw0 = sw[first];
+      const double* cv1 = sv[1 - first];
+      const double* cw1 = sw[1 - first];
+      for (int c = -h; c < h; ++c) a[0] += cv0[c], b[0] += cw0[c];
+      if (n == 2)
+        for (int c = -h; c < h; ++c) a[1] += cv1[c], b[1] += cw1[c];
+      float* o0 = res + static_cast<std::ptrdiff_t>(r) * cols;
+      if (n == 1) {
+        for (int c = 0; c < cols; ++c) {
+          a[0] += cv0[c + h], b[0] += cw0[c + h];
+          o0[c] = b[0] >= min_weight ? static_cast<float>(a[0] / std::max(b[0], 1e-6)) : nan;
+          a[0] -= cv0[c - h], b[0] -= cw0[c - h];
+        }
+        return;
       }
-      double sv = 0.0, sw = 0.0;
-      for (int c = -h; c < h; ++c) sv += cv_[c], sw += cw[c];
-      float* o = res + static_cast<std::ptrdiff_t>(r) * cols;
+      float* o1 = o0 + cols;
       for (int c = 0; c < cols; ++c) {
-        sv += cv_[c + h], sw += cw[c + h];
-        o[c] = sw >= min_weight ? static_cast<float>(sv / std::max(sw, 1e-6)) : nan;
-        sv -= cv_[c - h], sw -= cw[c - h];
+        a[0] += cv0[c + h], b[0] += cw0[c + h];
+        a[1] += cv1[c + h], b[1] += cw1[c + h];
+        o0[c] = b[0] >= min_weight ? static_cast<float>(a[0] / std::max(b[0], 1e-6)) : nan;
+        o1[c] = b[1] >= min_weight ? static_cast<float>(a[1] / std::max(b[1], 1e-6)) : nan;
+        a[0] -= cv0[c - h], b[0] -= cw0[c - h];
+        a[1] -= cv1[c - h], b[1] -= cw1[c - h];
+      }
+    };
+    // This thread's band, as schedule(static) would give it.
+    const int threads = omp_get_num_threads(), t = omp_get_thread_num();
+    const int q = rows / threads, extra = rows % threads;
+    const int r0 = t * q + std::min(t, extra), r1 = r0 + q + (t < extra ? 1 : 0);
+    if (r0 < r1) {
+      for (int rr = r0 - h; rr <= r0 + h; ++rr) add_row(sv[0], sw[0], rr, 1.0);
+      int cur = 0;
+      for (int r = r0; r < r1; r += 2) {
+        if (r + 1 < r1) {
+          next_row(cur, r + 1);
+          emit(2, cur, r);
+          if (r + 2 < r1) next_row(1 - cur, r + 2);  // (into this row's set)
+        } else {
+          emit(1, cur, r);
+        }
       }
     }
   }
