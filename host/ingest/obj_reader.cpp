@@ -28,9 +28,13 @@ Mesh read_obj(const std::string& path, std::string_view bytes) {
           cur.fail("vertex index " + std::to_string(i) + " out of range (" + std::to_string(n) +
                    " vertices so far)");
         corners.push_back(static_cast<std::uint32_t>(k));
-        // Skip '/t/n' parts.
-        const std::string_view rest = cur.word();
-        if (!rest.empty() && rest[0] != '/') cur.fail("bad face corner");
+        // Skip the corner's '/t/n' parts, if any ("7", "7/3", "7//5", "7/3/5").
+        if (!cur.at_end() && *cur.pos() == '/') {
+          cur.word();
+        } else if (!cur.at_end() && *cur.pos() != ' ' && *cur.pos() != '\t' && *cur.pos() != '\r' &&
+                   *cur.pos() != '\n') {
+          cur.fail("bad face corner");
+        }
       }
       if (corners.size() < 3) {
         ++mesh.dropped_faces;

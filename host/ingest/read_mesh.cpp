@@ -89,6 +89,15 @@ Mesh read_mapped(const std::string& path, std::string_view bytes, Format format,
     mesh.dropped_faces += before - mesh.triangles.size();
   }
   if (mesh.triangles.empty()) {
+    // Organized clouds (a point per camera pixel) may mark a pixel without a measurement
+    // by a point at the sensor, (0, 0, 0), instead of NaN: no surface is there. (At most
+    // one real point can sit exactly there.)
+    for (auto& v : mesh.vertices)
+      if (v.x() == 0.0f && v.y() == 0.0f && v.z() == 0.0f) {
+        v.setConstant(std::numeric_limits<float>::quiet_NaN());
+        ++nonfinite;
+      }
+    mesh.nonfinite_vertices = nonfinite;
     if (mesh.vertices.size() - nonfinite < 3)
       throw IngestError(path + ": fewer than 3 usable points and no faces: nothing to inspect");
     mesh_point_cloud(mesh);

@@ -14,8 +14,12 @@ namespace dentmark::ingest::detail {
 
 class TextCursor {
  public:
+  // A file's text (first_line 1) may open with a UTF-8 byte order mark, as Windows
+  // tools write it: it is skipped.
   TextCursor(std::string path, std::string_view text, std::size_t first_line = 1)
-      : path_(std::move(path)), p_(text.data()), end_(text.data() + text.size()), line_(first_line) {}
+      : path_(std::move(path)), p_(text.data()), end_(text.data() + text.size()), line_(first_line) {
+    if (first_line == 1 && text.starts_with("\xEF\xBB\xBF")) p_ += 3;
+  }
 
   bool at_end() const { return p_ >= end_; }
   std::size_t line() const { return line_; }

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -237,6 +238,96 @@ TEST(Ingest, UnorganisedPointCloudIsMeshedInTheSensorView) {
   }
   const double full = 0.059 * 0.059 * std::sqrt(1.04);
   EXPECT_NEAR(area, full, 0.1 * full);
+}
+
+// A 40 x 40 jittered grid on a tilted plane 1 m in front of the sensor (metres).
+std::vector<Eigen::Vector3f> cloud_points() {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> j(-0.15f, 0.15f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int y = 0; y < 40; ++y)
+    for (int x = 0; x < 40; ++x) {
+      const float px = (x + j(rng)) * 0.001f, py = (y + j(rng)) * 0.001f;
+      pts.emplace_back(px, py, 1.0f + 0.2f * px);
+    }
+  return pts;
+}
+
+// The same points written as 'x<sep>y<sep>z' with 'decimal' as the decimal mark.
+std::string cloud_text(const std::vector<Eigen::Vector3f>& pts, const std::string& sep, char decimal = '.') {
+  std::string out;
+  char buf[64];
+  for (const auto& p : pts) {
+    std::snprintf(buf, sizeof buf, "%.7f%s%.7f%s%.7f%s0.5\n", p.x(), sep.c_str(), p.y(), sep.c_str(), p.z(),
+                  sep.c_str());
+    std::string line = buf;
+    if (decimal != '.') std::replace(line.begin(), line.end(), '.', decimal);
+    out += line;
+  }
+  return out;
+}
+
+TEST(Ingest, PointCloudsAsToolsWriteThem) {
+  // Headers (column names, a Leica .pts count), semicolons, decimal commas, a UTF-8 byte
+  // order mark: each reads the same points as the plain file.
+  const std::vector<Eigen::Vector3f> pts = cloud_points();
+  const Mesh plain = read_mesh(write_file("g0.xyz", cloud_text(pts, " ")));
+  ASSERT_EQ(plain.input_points, pts.size());
+  const auto same = [&](const Mesh& m) {
+    ASSERT_EQ(m.vertices.size(), plain.vertices.size());
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(m.vertices[i], plain.vertices[i]) << i;
+    EXPECT_EQ(m.triangles.size(), plain.triangles.size());
+  };
+  for (const auto& [name, text] : std::vector<std::pair<std::string, std::string>>{
+           {"g1.csv", "X,Y,Z,Intensity\n" + cloud_text(pts, ",")},
+           {"g2.pts", std::to_string(pts.size()) + "\n" + cloud_text(pts, " ")},
+           {"g3.csv", "x;y;z;i\r\n" + cloud_text(pts, ";")},
+           {"g4.csv", cloud_text(pts, ";", ',')},
+           {"g5.txt", "X\tY\tZ\n" + cloud_text(pts, "\t", ',')},
+           {"g6.xyz", "\xEF\xBB\xBF" + cloud_text(pts, ", ")},
+           {"g7.xyz", "# exported\n// x y z\n" + cloud_text(pts, " ")}}) {
+    SCOPED_TRACE(name);
+    same(read_mesh(write_file(name, text)));
+  }
+  // Only the first line may be a header: a later line without three numbers is an error
+  // naming it.
+  try {
+    read_mesh(write_file("g8.xyz", "X Y Z\n" + cloud_text(pts, " ") + "1.0 2.0 oops\n"));
+    FAIL() << "no error";
+  } catch (const IngestError& e) {
+    EXPECT_NE(std::string(e.what()).find("line " + std::to_string(pts.size() + 2) + ":"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Ingest, OrganisedCloudsMarkMissingPixelsAtTheSensor) {
+  // An organised cloud (a point per camera pixel) may write a pixel without a
+  // measurement as (0, 0, 0) instead of NaN: it reads as NaN, and the rest is meshed.
+  std::vector<Eigen::Vector3f> pts = cloud_points();
+  std::string with_nan, with_zero;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const bool missing = i % 7 == 3;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%.7f %.7f %.7f\n", pts[i].x(), pts[i].y(), pts[i].z());
+    with_nan += missing ? "nan nan nan\n" : buf;
+    with_zero += missing ? "0 0 0\n" : buf;
+  }
+  const Mesh a = read_mesh(write_file("h0.xyz", with_nan)), b = read_mesh(write_file("h1.xyz", with_zero));
+  EXPECT_EQ(a.nonfinite_vertices, (pts.size() + 3) / 7);
+  EXPECT_EQ(b.nonfinite_vertices, a.nonfinite_vertices);
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  EXPECT_EQ(a.triangles, b.triangles);
+  EXPECT_GT(a.triangles.size(), 1500u);  // of 2 x 39 x 39 = 3042 with every point there
+}
+
+TEST(Ingest, ObjWithPlainFacesAndAByteOrderMark) {
+  // 'f 1 2 3', the commonest face, once failed as a "bad face corner".
+  const std::string obj = "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 1 2 3\nf 2 4 3\n";
+  const Mesh a = read_mesh(write_file("k0.obj", obj)),
+             b = read_mesh(write_file("k1.obj", "\xEF\xBB\xBF" + obj));
+  EXPECT_EQ(a.vertices, b.vertices);
+  EXPECT_EQ(a.triangles, b.triangles);
+  EXPECT_EQ(b.vertices.size(), 4u);
 }
 
 TEST(Ingest, ErrorsNameFileAndPosition) {

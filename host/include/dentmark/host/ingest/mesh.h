@@ -18,7 +18,7 @@ struct Mesh {
   bool from_point_cloud = false;                        // meshed here in the sensor's view (2.5D)
   std::size_t input_points = 0;                         // vertices / points in the file
   std::size_t dropped_faces = 0;                        // faces with < 3 corners or non-finite corners
-  std::size_t nonfinite_vertices = 0;                   // vertices with NaN/Inf coordinates
+  std::size_t nonfinite_vertices = 0;  // vertices without a position: NaN/Inf, or a cloud's (0, 0, 0)
 };
 
 // A malformed or unreadable input. what() is one line naming the file and where:
