@@ -92,6 +92,9 @@ int run_detect(const DetectArgs& a) {
     return 2;
   }
   if (tty) std::fprintf(stderr, "\r%*s\r", 60, "");
+  if (det.stats.stray_triangles > 0)
+    log::info(a.scan + ": " + std::to_string(det.stats.stray_triangles) +
+              " triangles reach stray points far off the panel: left out");
   det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
   const auto t_detect = Clock::now();
   try {

@@ -23,6 +23,7 @@
 #include "measure_candidate.h"
 #include "median.h"
 #include "patch_normal.h"
+#include "stray_points.h"
 
 namespace dentmark::detect {
 namespace {
@@ -68,7 +69,7 @@ Finding design_finding(const Candidate& comp, const HeightMap& map, const std::v
 
 }  // namespace
 
-Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
+Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
   Detection out;
   auto t0 = Clock::now();
   auto lap = [&](const char* stage) {
@@ -77,11 +78,24 @@ Detection detect(const ingest::MeshView& mesh, const DetectConfig& cfg) {
     t0 = now;
   };
   DetectionStats& st = out.stats;
-  st.vertices = mesh.vertex_count();
-  st.triangles = mesh.triangle_count();
-  st.spacing = ingest::point_spacing(mesh);
+  st.vertices = input.vertex_count();
+  st.triangles = input.triangle_count();
+  st.spacing = ingest::point_spacing(input);
   const double h = std::max(cfg.finest_node_size, 2.0 * st.spacing);
   st.leaf_size = h;
+  // A stray point far off the panel (hundreds of metres) would need an octree deeper than
+  // its 16 levels at this node size: such a scan is inspected cropped to the panel.
+  ingest::MeshView mesh = input;
+  ingest::Mesh cropped;
+  {
+    const Box all = bounding_box(input);
+    if (static_cast<double>((all.hi - all.lo).maxCoeff()) + h > std::ldexp(h, LinearOctree::kMaxDepth)) {
+      cropped = crop(input, panel_box(input), st.stray_triangles);
+      mesh = cropped;
+    } else {
+      mesh.set_bounds(all.lo, all.hi);  // (measured once: the octree needs them too)
+    }
+  }
 
   // --- Linear octree, eq. (1)-(3) ---
   // Released once the map is built: later stages reuse its memory.

@@ -28,7 +28,39 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     Eigen::Vector3d p = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
     Eigen::Matrix3d pp = Eigen::Matrix3d::Zero();
   };
+  // The panel's box: per axis the middle 98 % of the leaves (sampled), widened by a
+  // quarter of its largest side each way, holds every leaf of a real scan. A stray leaf beyond
+  // it (an outlier tens or hundreds of metres off, meshed to the panel) stays out of the
+  // plane, whose scatter it would dominate by its distance, and off the map, which it
+  // would stretch to gigapixels.
+  Eigen::Vector3f box_lo = Eigen::Vector3f::Constant(-std::numeric_limits<float>::max()), box_hi = -box_lo;
+  {
+    const std::size_t stride = std::max<std::size_t>(1, leaves.size() / 100000);
+    std::vector<float> x[3];
+    for (std::size_t i = 0; i < leaves.size(); i += stride)
+      if (leaves[i].area > 0.0f)
+        for (int a = 0; a < 3; ++a) x[a].push_back(leaves[i].centroid[a]);
+    if (x[0].size() >= 100) {
+      for (int a = 0; a < 3; ++a) {
+        const auto at = [&](double f) {
+          const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
+          std::nth_element(x[a].begin(), k, x[a].end());
+          return *k;
+        };
+        box_lo[a] = at(0.01), box_hi[a] = at(0.99);
+      }
+      // By the largest side on every axis: across a panel seen face-on the box is thin,
+      // and a handle stands proud of it.
+      const float margin = 0.25f * (box_hi - box_lo).maxCoeff();
+      box_lo.array() -= margin, box_hi.array() += margin;
+    }
+  }
+  const auto in_box = [&](const OctreeLeaf& l) {
+    return l.area > 0.0f && (l.centroid.array() >= box_lo.array()).all() &&
+           (l.centroid.array() <= box_hi.array()).all();
+  };
   constexpr std::int64_t kChunks = 64;
+  const double max_leaf_area = 3.0 * tree.leaf_size() * tree.leaf_size();
   Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
   if (!leaves.empty()) x0 = leaves[leaves.size() / 2].centroid.cast<double>();
   std::vector<Sums> chunk(kChunks);
@@ -39,9 +71,13 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
       const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
       cs.s += l.sum_an.cast<double>();
-      if (!(l.area > 0.0f)) continue;
+      if (!in_box(l)) continue;
+      // A leaf holds at most ~1.5 h² of surface (a plane cuts a cube in at most √2 h²);
+      // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
+      // metres long), whose whole area lands in one leaf and would tilt the plane.
+      const double a = std::min(static_cast<double>(l.area), max_leaf_area);
       const Eigen::Vector3d d = l.centroid.cast<double>() - x0;
-      cs.area += l.area, cs.p += l.area * d, cs.pp += l.area * d * d.transpose();
+      cs.area += a, cs.p += a * d, cs.pp += a * d * d.transpose();
     }
   }
   Sums all;
@@ -68,17 +104,19 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
-  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), and the bounds.
+  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m).
   const auto count = static_cast<std::int64_t>(leaves.size());
   std::vector<Eigen::Vector3f> q(leaves.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < count; ++i)
+    if (leaves[i].area > 0.0f) q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
+  const auto on_map = [&](std::size_t i) { return in_box(leaves[i]); };
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {
-    if (!(leaves[i].area > 0.0f)) continue;
-    const Eigen::Vector3d p = map.to_map(leaves[i].centroid.cast<double>());
-    q[i] = p.cast<float>();
-    umin = std::min(umin, p.x()), umax = std::max(umax, p.x());
-    vmin = std::min(vmin, p.y()), vmax = std::max(vmax, p.y());
+    if (!on_map(static_cast<std::size_t>(i))) continue;
+    umin = std::min<double>(umin, q[i].x()), umax = std::max<double>(umax, q[i].x());
+    vmin = std::min<double>(vmin, q[i].y()), vmax = std::max<double>(vmax, q[i].y());
   }
   map.u0 = umin - pixel, map.v0 = vmin - pixel;
   map.cols = static_cast<int>((umax - map.u0) / pixel) + 2;
@@ -91,7 +129,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   std::int64_t* per_row = row_leaves.data();
 #pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
   for (std::int64_t i = 0; i < count; ++i)
-    if (leaves[i].area > 0.0f) {
+    if (on_map(static_cast<std::size_t>(i))) {
       pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
       if (pix[i] >= 0) ++per_row[pix[i] / map.cols];
     }

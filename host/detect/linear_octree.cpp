@@ -44,7 +44,7 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   int depth = 1;
   while (leaf_size * std::ldexp(1.0, depth) < extent) ++depth;
   // 16 levels: 65 536 finest nodes a side (65 m at 1 mm); a bucket's cell fits 32 bits.
-  if (depth > 16)
+  if (depth > kMaxDepth)
     throw std::invalid_argument("finest node too small for the scan's extent (more than 65536 nodes a side)");
   LinearOctree tree;
   tree.depth_ = depth;

@@ -36,12 +36,12 @@ Mesh read_obj(const std::string& path, std::string_view bytes) {
           cur.fail("bad face corner");
         }
       }
-      if (corners.size() < 3) {
-        ++mesh.dropped_faces;
-      } else {
-        for (std::size_t k = 1; k + 1 < corners.size(); ++k)
-          mesh.triangles.push_back({corners[0], corners[k], corners[k + 1]});
-      }
+      // A face has at least 3 corners; fewer is a malformed (or cut) statement, not a face
+      // to drop quietly ('l' is the statement for lines).
+      if (corners.size() < 3)
+        cur.fail("face with " + std::to_string(corners.size()) + " corners (a face needs at least 3)");
+      for (std::size_t k = 1; k + 1 < corners.size(); ++k)
+        mesh.triangles.push_back({corners[0], corners[k], corners[k + 1]});
     }
     cur.next_line();
   }

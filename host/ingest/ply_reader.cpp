@@ -58,6 +58,7 @@ struct Element {
   std::string name;
   std::uint64_t count = 0;
   std::vector<Property> properties;
+  std::size_t line = 0;  // of its 'element' statement in the header
 };
 
 enum class Encoding { kAscii, kLittle, kBig };
@@ -160,15 +161,31 @@ struct PlyHeader {
   std::size_t lines = 0;  // header lines
 };
 
+// Where the line 'end_header' ends (its '\n', or the end of the file): the word alone on
+// its line, blanks and a '\r' around it allowed, not inside a comment ("comment ends at
+// end_header"); npos if there is none.
+std::size_t end_of_header(std::string_view bytes) {
+  const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  for (std::size_t at = bytes.find("end_header"); at != std::string_view::npos;
+       at = bytes.find("end_header", at + 1)) {
+    std::size_t b = at;
+    while (b > 0 && blank(bytes[b - 1])) --b;
+    if (b > 0 && bytes[b - 1] != '\n') continue;
+    std::size_t e = at + 10;
+    while (e < bytes.size() && blank(bytes[e])) ++e;
+    if (e == bytes.size() || bytes[e] == '\n') return e;
+  }
+  return std::string_view::npos;
+}
+
 PlyHeader parse_header(const std::string& path, std::string_view bytes) {
-  const std::size_t header_end_tag = bytes.find("end_header");
-  if (bytes.substr(0, 3) != "ply" || header_end_tag == std::string_view::npos)
-    throw IngestError(path + ": line 1: not a PLY file (no 'ply' magic or no 'end_header')");
-  std::size_t body = bytes.find('\n', header_end_tag);
-  if (body == std::string_view::npos)
+  const std::size_t header_end = end_of_header(bytes);
+  if (bytes.substr(0, 3) != "ply" || header_end == std::string_view::npos)
+    throw IngestError(path + ": line 1: not a PLY file (no 'ply' magic or no 'end_header' line)");
+  if (header_end == bytes.size())
     throw IngestError(path + ": byte " + std::to_string(bytes.size()) +
                       ": header not terminated by a newline");
-  ++body;
+  const std::size_t body = header_end + 1;
   TextCursor hdr(path, bytes.substr(0, body));
   hdr.next_line();  // "ply"
   std::optional<Encoding> encoding;
@@ -187,6 +204,7 @@ PlyHeader parse_header(const std::string& path, std::string_view bytes) {
         hdr.fail("unknown format '" + std::string(f) + "'");
     } else if (key == "element") {
       Element e;
+      e.line = hdr.line();
       e.name = std::string(hdr.word());
       const long long n = hdr.integer("element count");
       if (n < 0) hdr.fail("negative element count");
@@ -223,7 +241,24 @@ PlyHeader parse_header(const std::string& path, std::string_view bytes) {
     hdr.next_line();
   }
   if (!encoding) throw IngestError(path + ": line 2: no 'format' line in the PLY header");
+  for (const Element& e : elements) {
+    if (e.name != "vertex") continue;
+    for (const char* axis : {"x", "y", "z"})
+      if (std::none_of(e.properties.begin(), e.properties.end(),
+                       [&](const Property& p) { return !p.is_list && p.name == axis; }))
+        throw IngestError(path + ": line " + std::to_string(e.line) + ": element 'vertex' has no property '" +
+                          axis + "'");
+  }
   return {*encoding, std::move(elements), body, hdr.line()};
+}
+
+// An ascii list count or index: an integer, or for a float type a whole number.
+long long ascii_index(TextCursor& cur, Scalar type, const char* what) {
+  if (type != Scalar::kF32 && type != Scalar::kF64) return cur.integer(what);
+  const double v = cur.number(what);
+  if (!(v > -9.0e15 && v < 9.0e15) || v != std::floor(v))
+    cur.fail(std::string("expected a whole number for ") + what);
+  return static_cast<long long>(v);
 }
 
 }  // namespace
@@ -250,8 +285,6 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         if (e.name == "face" && e.properties[k].is_list && (n == "vertex_indices" || n == "vertex_index"))
           ilist = static_cast<int>(k);
       }
-      if (e.name == "vertex" && (ix < 0 || iy < 0 || iz < 0))
-        throw IngestError(path + ": vertex element lacks x, y or z");
       // A record takes at least two bytes ("0\n"): a header that claims more than the file
       // can hold is reported where the file ends, not by a failed allocation.
       const std::uint64_t can_hold = (bytes.size() - body) / 2;
@@ -266,15 +299,17 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         for (std::size_t k = 0; k < e.properties.size(); ++k) {
           const Property& p = e.properties[k];
           if (p.is_list) {
-            const long long n = cur.integer("list count");
+            const long long n = ascii_index(cur, p.count_type, "list count");
             if (n < 0 || n > 1'000'000) cur.fail("bad list count " + std::to_string(n));
             const bool take = static_cast<int>(k) == ilist;
-            if (take) faces.begin();
-            for (long long j = 0; j < n; ++j) {
-              const long long idx = cur.integer("vertex index");
-              if (take) faces.corner(idx, "line " + std::to_string(cur.line()));
+            if (take) {
+              faces.begin();
+              for (long long j = 0; j < n; ++j)
+                faces.corner(ascii_index(cur, p.type, "vertex index"), "line " + std::to_string(cur.line()));
+              faces.end();
+            } else {  // any other list (MeshLab's 'list uchar float texcoord'): numbers of its type
+              for (long long j = 0; j < n; ++j) cur.number(p.name.c_str());
             }
-            if (take) faces.end();
           } else {
             const double v = cur.number(p.name.c_str());
             if (static_cast<int>(k) == ix) xyz[0] = v;
@@ -289,6 +324,11 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         cur.next_line();
       }
     }
+    cur.skip_space();
+    if (!cur.at_end())
+      cur.fail("text after the last element" +
+               (elements.empty() ? std::string() : " '" + elements.back().name + "'") +
+               ": the header's element counts do not match the body");
     return mesh;
   }
 
@@ -310,7 +350,9 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         stride += scalar_size(p.type);
     }
     if (e.name == "vertex") {
-      if (!fixed) throw IngestError(path + ": vertex element with list properties is not supported");
+      if (!fixed)
+        throw IngestError(path + ": line " + std::to_string(e.line) +
+                          ": a binary 'vertex' element with list properties is not supported");
       std::size_t ox = SIZE_MAX, oy = SIZE_MAX, oz = SIZE_MAX, o = 0;
       Scalar tx = Scalar::kF32, ty = tx, tz = tx;
       for (const auto& p : e.properties) {
@@ -319,8 +361,6 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         if (p.name == "z") oz = o, tz = p.type;
         o += scalar_size(p.type);
       }
-      if (ox == SIZE_MAX || oy == SIZE_MAX || oz == SIZE_MAX)
-        throw IngestError(path + ": vertex element lacks x, y or z");
       if (stride != 0 && e.count > (size - off) / stride)
         throw IngestError(path + ": byte " + std::to_string(off + (size - off) / stride * stride) +
                           ": file ends inside vertex " + std::to_string((size - off) / stride) + " of " +
@@ -438,6 +478,11 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
         need(static_cast<std::size_t>(n) * scalar_size(p.type),
              "element '" + e.name + "' " + std::to_string(r));
         const bool take = is_face && (p.name == "vertex_indices" || p.name == "vertex_index");
+        // No writer stores a face without corners; a zero count is what the bytes of an
+        // index (high bytes 0) give when the body is read out of step with the header.
+        if (take && n == 0)
+          throw IngestError(path + ": byte " + std::to_string(at) + ": face " + std::to_string(r) +
+                            " has no corners: the header's element counts do not match the body");
         if (take) faces.begin();
         for (std::int64_t j = 0; j < n; ++j) {
           if (take) faces.corner(load_index(base + off, p.type, swap), "byte " + std::to_string(off));
@@ -447,6 +492,14 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       }
     }
   }
+  // The body must end where the declared elements end: more bytes mean the counts are
+  // wrong (too few faces declared, a vertex too many, ...), and the mesh read is not the
+  // file's.
+  if (off != size)
+    throw IngestError(path + ": byte " + std::to_string(off) + ": " + std::to_string(size - off) +
+                      " bytes after the last element" +
+                      (elements.empty() ? std::string() : " '" + elements.back().name + "'") +
+                      ": the header's element counts do not match the body");
   return mesh;
 }
 

@@ -125,7 +125,8 @@ nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& s
                {"leaf_sigma_threshold", s.leaf_sigma_threshold},
                {"feature_leaves", s.feature_leaves},
                {"feature_groups", s.feature_groups},
-               {"deviation_noise", s.deviation_noise}};
+               {"deviation_noise", s.deviation_noise},
+               {"stray_triangles", s.stray_triangles}};
   j["defects"] = nlohmann::json::array();
   for (const auto& f : det.defects) j["defects"].push_back(item(f));
   j["features"] = nlohmann::json::array();

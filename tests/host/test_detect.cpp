@@ -254,6 +254,59 @@ TEST(Detect, NoisyScanKeepsTheOctreesFeatureLeavesOutOfTheNoise) {
   EXPECT_LE(r.det.features.size(), 10u);
 }
 
+TEST(Detect, StrayPointsFarOffThePanelAreLeftOut) {
+  // An outlier vertex tens or hundreds of metres off, meshed to the panel as a spike or
+  // not used by any face. Once a spike 304 m off stretched the height map to 23 GB (and
+  // tilted its plane: the spike's triangles outweighed the panel); a vertex 100 m off
+  // made the octree too deep for 1 mm nodes and the scan was refused.
+  sim::scan::ScanOptions o = small_door(61);
+  const sim::scan::SynthScan scan = sim::scan::synthesize_scan(o);
+  const report::TruthFile truth = report::truth_from_scan(scan);
+  const auto detect_with = [&](const std::vector<Eigen::Vector3f>& extra, int spikes) {
+    ingest::Mesh mesh;
+    mesh.vertices = scan.vertices;
+    mesh.triangles = scan.triangles;
+    for (const auto& p : extra) {
+      const auto k = static_cast<std::uint32_t>(mesh.vertices.size());
+      mesh.vertices.push_back(p);
+      for (int i = 0; i < spikes; ++i) {  // a spike: triangles from the stray vertex to the panel
+        const auto& t = scan.triangles[static_cast<std::size_t>(1000 + 7919 * (k % 13) + i)];
+        mesh.triangles.push_back({t[0], t[1], k});
+      }
+    }
+    return detect::detect(mesh, detect::DetectConfig{});
+  };
+  const detect::Detection clean = detect_with({}, 0);
+  const auto scored = [&](const detect::Detection& det) {
+    report::DefectsFile found;
+    for (const auto& f : det.defects)
+      found.defects.push_back({report::class_name(f.defect.defect_class), f.defect});
+    return report::evaluate(truth, found);
+  };
+  ASSERT_EQ(scored(clean).matched, 5);
+  struct Case {
+    const char* what;
+    std::vector<Eigen::Vector3f> extra;
+    int spikes;
+    std::size_t stray;
+  };
+  for (const Case& c : {Case{"spikes 30 m off (kept in the octree, off the map)",
+                             {{0.1f, 30.0f, 0.9f}, {30.0f, 0.1f, 9.0f}},
+                             3,
+                             0},
+                        Case{"spikes 304 m off", {{0.08f, 304.0f, 0.9f}, {0.04f, 0.04f, 264.0f}}, 3, 6},
+                        Case{"an unused vertex 100 m off", {{100.0f, 0.0f, 0.0f}}, 0, 0}}) {
+    SCOPED_TRACE(c.what);
+    const detect::Detection det = detect_with(c.extra, c.spikes);
+    const report::Evaluation e = scored(det);
+    EXPECT_EQ(e.matched, 5);
+    EXPECT_EQ(e.false_alarms, 0);
+    EXPECT_EQ(det.stats.stray_triangles, c.stray);
+    EXPECT_LE(det.map.size(), clean.map.size() + clean.map.size() / 10);
+    EXPECT_GT(std::abs(det.map.axes.row(2).dot(clean.map.axes.row(2))), 0.9999);  // the panel's plane
+  }
+}
+
 TEST(Detect, CleanPanelWithOutliersAndShuffledTrianglesHasNoDefects) {
   sim::scan::ScanOptions o = small_door(13);
   o.planted.clear();

@@ -5,13 +5,17 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <string>
 #include <system_error>
+#include <tuple>
+#include <vector>
 
 #include "dentmark/host/ingest/cloud_mesher.h"
 #include "dentmark/host/ingest/mesh_writer.h"
@@ -596,6 +600,229 @@ TEST(Ingest, HeaderCountsBeyondTheFileAreReportedNotAllocated) {
                        "\nproperty list uchar int vertex_indices\nproperty uchar flags\nend_header\n";
   for (int i = 0; i < 9; ++i) put<float>(binary, static_cast<float>(i));
   EXPECT_THROW(read_mesh(write_file("huge_binary.ply", binary)), IngestError);
+}
+
+}  // namespace
+}  // namespace dentmark::ingest
+
+namespace dentmark::ingest {
+namespace {
+
+// The IngestError message for reading `bytes` as file `name` (read_mesh, or open_scan
+// when `scan`); "" and a test failure when the file is accepted.
+std::string ingest_error(const std::string& name, const std::string& bytes, bool scan = false) {
+  const std::string p = write_file(name, bytes);
+  try {
+    if (scan)
+      open_scan(p);
+    else
+      read_mesh(p);
+  } catch (const IngestError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_EQ(what.rfind(p + ": ", 0), 0u) << what;
+    return what;
+  }
+  ADD_FAILURE() << name << " accepted";
+  return "";
+}
+
+std::string with_header_line(std::string ply, const std::string& from, const std::string& to) {
+  ply.replace(ply.find(from), from.size(), to);
+  return ply;
+}
+
+TEST(Ingest, PlyCountsThatDoNotMatchTheBodyAreReported) {
+  // Binary: the declared elements must end where the file ends. Each case once read a
+  // mesh (a face short, or the garbage ignored) and exited 0.
+  const std::string good = triangle_block_ply(4);
+  const std::size_t body = good.find("end_header\n") + 11, faces = body + 60;
+  std::string count_byte_2 = good;
+  count_byte_2[faces + 26] = 2;  // the last face: 2 corners, 4 bytes left over
+  const std::vector<std::tuple<std::string, std::string, std::size_t, std::string>> binary = {
+      {"nf_minus1", with_header_line(good, "element face 3", "element face 2"), faces + 26, "13 bytes after"},
+      {"nf_minus2", with_header_line(good, "element face 3", "element face 1"), faces + 13, "26 bytes after"},
+      {"trailing", good + std::string(7, '\0'), good.size(), "7 bytes after"},
+      {"nv_plus1", with_header_line(good, "element vertex 5", "element vertex 6"), faces + 12,
+       "face 0 has no corners"},
+      {"count_byte_2_last", count_byte_2, faces + 26 + 9, "4 bytes after"}};
+  for (const auto& [name, bytes, at, what] : binary) {
+    SCOPED_TRACE(name);
+    const std::string e = ingest_error("cm_" + name + ".ply", bytes);
+    EXPECT_NE(e.find(": byte " + std::to_string(at) + ": " + what), std::string::npos) << e;
+    EXPECT_NE(e.find("the header's element counts do not match the body"), std::string::npos) << e;
+    // The in-place path of open_scan reports it the same way.
+    EXPECT_EQ(ingest_error("cm_" + name + ".ply", bytes, true), e);
+  }
+  // Big endian, polygons and a per-face property: one face fewer than the body holds.
+  const std::string be = binary_ply(true, false, "uchar", "int");
+  const std::string e = ingest_error("cm_be.ply", with_header_line(be, "element face 2", "element face 1"));
+  EXPECT_NE(e.find(": byte " + std::to_string(be.size() - 14) + ": 14 bytes after the last element 'face'"),
+            std::string::npos)
+      << e;
+  // Ascii: text after the last element is reported at its line; blank lines are not.
+  EXPECT_NO_THROW(read_mesh(write_file("cm_blank.ply", ascii_ply() + "\n  \r\n\n")));
+  const std::string a =
+      ingest_error("cm_ascii.ply", with_header_line(ascii_ply(), "element face 2", "element face 1"));
+  EXPECT_NE(a.find(": line 18: text after the last element 'face': the header's element counts do not match"),
+            std::string::npos)
+      << a;
+}
+
+TEST(Ingest, AsciiPlyListsOfOtherTypesAreReadByTheirType) {
+  // MeshLab writes per-face texture coordinates as 'property list uchar float texcoord':
+  // once read as integers ("expected an integer for vertex index").
+  std::string s =
+      with_header_line(ascii_ply(), "property list uchar int vertex_indices\n",
+                       "property list uchar int vertex_indices\nproperty list uchar float texcoord\n");
+  s = with_header_line(s, "4 0 1 2 3\n", "4 0 1 2 3 8 0.5 0.25 1e-3 -0.125 0.75 1.0 0 1\n");
+  s = with_header_line(s, "3 1 4 2\n", "3 1 4 2 6 0.1 0.2 0.3 0.4 0.5 0.6\n");
+  expect_reference(read_mesh(write_file("tc.ply", s)));
+  // A float-typed index list is read as numbers too; a fraction is no index.
+  std::string f =
+      with_header_line(ascii_ply(), "list uchar int vertex_indices", "list uchar float vertex_indices");
+  expect_reference(read_mesh(write_file("tf.ply", f)));
+  const std::string e = ingest_error("tg.ply", with_header_line(f, "3 1 4 2", "3 1 4.5 2"));
+  EXPECT_NE(e.find(": line 18: expected a whole number for vertex index"), std::string::npos) << e;
+}
+
+TEST(Ingest, EndHeaderInsideACommentDoesNotEndTheHeader) {
+  // Once read the comment as the header's end: the binary body was taken from the wrong
+  // byte ("fewer than 3 usable points").
+  for (const std::string comment : {"comment written by X: header ends at end_header\n",
+                                    "comment end_header here\n", "obj_info end_header\n"}) {
+    SCOPED_TRACE(comment);
+    const std::string bin =
+        with_header_line(triangle_block_ply(4), "element vertex", comment + "element vertex");
+    expect_reference(read_mesh(write_file("eh1.ply", bin)));
+    const Scan scan = open_scan(write_file("eh2.ply", bin));
+    EXPECT_TRUE(scan.in_place);
+    expect_reference(scan.mesh);
+    expect_reference(
+        read_mesh(write_file("eh3.ply", with_header_line(ascii_ply(), "comment test\n", comment))));
+  }
+  // The line itself may carry blanks and a '\r'.
+  expect_reference(read_mesh(
+      write_file("eh4.ply", with_header_line(triangle_block_ply(4), "end_header\n", " end_header \r\n"))));
+}
+
+TEST(Ingest, PlyHeaderErrorsNameTheHeaderLine) {
+  // Once "vertex element lacks x, y or z", with no position.
+  const std::string ascii =
+      ingest_error("hl1.ply", with_header_line(ascii_ply(), "property float z", "property float w"));
+  EXPECT_NE(ascii.find(": line 4: element 'vertex' has no property 'z'"), std::string::npos) << ascii;
+  const std::string bin = triangle_block_ply(4);
+  const std::string e =
+      ingest_error("hl2.ply", with_header_line(bin, "property float x", "property float u"));
+  EXPECT_NE(e.find(": line 3: element 'vertex' has no property 'x'"), std::string::npos) << e;
+  EXPECT_EQ(ingest_error("hl2.ply", with_header_line(bin, "property float x", "property float u"), true), e);
+  const std::string l = ingest_error(
+      "hl3.ply",
+      with_header_line(bin, "property float z\n", "property float z\nproperty list uchar int n\n"));
+  EXPECT_NE(l.find(": line 3: a binary 'vertex' element with list properties is not supported"),
+            std::string::npos)
+      << l;
+}
+
+// The reference faces as ascii STL, keywords written by `k`, each line led by `indent`.
+std::string ascii_stl(
+    const std::function<std::string(std::string)>& k = [](std::string s) { return s; },
+    const std::string& indent = "") {
+  const int tris[3][3] = {{0, 1, 2}, {0, 2, 3}, {1, 4, 2}};
+  std::string a = k("solid") + " t\n";
+  for (auto& t : tris) {
+    a += indent + k("facet normal") + " 0 0 1\n" + indent + k("outer loop") + "\n";
+    for (int i : t)
+      a += indent + k("vertex") + " " + std::to_string(kV[i][0]) + " " + std::to_string(kV[i][1]) + " " +
+           std::to_string(kV[i][2]) + "\n";
+    a += indent + k("endloop") + "\n" + indent + k("endfacet") + "\n";
+  }
+  return a + k("endsolid") + " t\n";
+}
+
+void expect_stl_reference(const Mesh& m) {
+  const int tris[3][3] = {{0, 1, 2}, {0, 2, 3}, {1, 4, 2}};
+  ASSERT_EQ(m.triangles.size(), 3u);
+  for (int t = 0; t < 3; ++t)
+    for (int c = 0; c < 3; ++c)
+      for (int k = 0; k < 3; ++k) EXPECT_FLOAT_EQ(m.vertices[m.triangles[t][c]][k], kV[tris[t][c]][k]);
+}
+
+TEST(Ingest, AsciiStlKeywordsInAnyCaseAfterBlanks) {
+  const auto upper = [](std::string s) {
+    for (auto& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    return s;
+  };
+  const auto mixed = [](std::string s) {
+    if (!s.empty()) s[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(s[0])));
+    return s;
+  };
+  expect_stl_reference(read_mesh(write_file("su1.stl", ascii_stl(upper))));
+  expect_stl_reference(read_mesh(write_file("su2.stl", ascii_stl(mixed, "\t "))));
+  expect_stl_reference(read_mesh(write_file("su3.stl", "  \r\n\n\t" + ascii_stl())));
+  expect_stl_reference(read_mesh(write_file("su4.stl", "\xEF\xBB\xBF" + ascii_stl())));
+  // Neither binary of the right size nor ascii: said so, at the byte that is neither.
+  const std::string e = ingest_error("su5.stl", "\n  hello world\n");
+  EXPECT_NE(e.find(": byte 3: neither a binary STL of matching size"), std::string::npos) << e;
+  EXPECT_NE(e.find("nor ASCII STL"), std::string::npos) << e;
+  // A binary STL whose header starts with "solid" (SolidWorks) but whose count is wrong:
+  // the first non-text byte is named, not "unexpected '<raw bytes>'" on line 2.
+  std::string b = "solid part exported by a CAD tool";
+  b.resize(80, ' ');
+  put<std::uint32_t>(b, 2);
+  for (int i = 0; i < 12; ++i) put<float>(b, 0.25f);
+  b += std::string(2, '\0');  // one facet of the two
+  const std::string s = ingest_error("su6.stl", b);
+  EXPECT_NE(
+      s.find(": byte 80: neither a binary STL of matching size (its header's 2 facets need 184 bytes, the "
+             "file has 134) nor ASCII STL"),
+      std::string::npos)
+      << s;
+}
+
+TEST(Ingest, AsciiStlStructureIsChecked) {
+  const std::string good = ascii_stl();
+  // Several solids in one file stay valid.
+  const std::size_t second = good.find("endfacet\n") + 9;  // where the second facet starts
+  std::string solids = good;
+  solids.insert(second, "endsolid t\nsolid u\n");
+  expect_stl_reference(read_mesh(write_file("st1.stl", solids)));
+  // A missing 'endloop' once dropped the facet silently; a facet has exactly 3 vertices;
+  // a file cut between facets (no 'endsolid') once read as a smaller mesh.
+  std::string no_endloop = good;
+  no_endloop.erase(no_endloop.find("endloop\n"), 8);
+  std::string two_vertices = good;
+  two_vertices.erase(two_vertices.find("vertex"),
+                     two_vertices.find('\n', two_vertices.find("vertex")) - two_vertices.find("vertex") + 1);
+  std::string four_vertices = good;
+  four_vertices.insert(four_vertices.find("endloop"), "vertex 0 0 0\n");
+  const std::string cut = good.substr(0, second);
+  for (const auto& [name, bytes, where] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"st2.stl", no_endloop, ": line 7: 'endfacet' where 'vertex' or 'endloop' belongs"},
+           {"st3.stl", two_vertices, ": line 6: facet loop with 2 vertices (a facet has 3)"},
+           {"st4.stl", four_vertices, ": line 7: a fourth 'vertex' in a facet (a facet has 3)"},
+           {"st5.stl", cut,
+            ": line 8: the file ends here with no 'endsolid' after the last facet: is it cut short?"},
+           {"st6.stl", cut.substr(0, cut.size() - 9), ": line 7: the file ends inside a facet"}}) {
+    SCOPED_TRACE(name);
+    const std::string e = ingest_error(name, bytes);
+    EXPECT_NE(e.find(where), std::string::npos) << e;
+  }
+}
+
+TEST(Ingest, ObjFaceWithFewerThanThreeCornersIsAnError) {
+  // A file cut inside its last face ('f 12//12 1//1') once read as if that face were not
+  // there.
+  const std::string v = "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 1//1 2//1 3//1\n";
+  for (const std::string& last : {"f 2//1 4//1", "f 2//1 4//1\n", "f 2 4\n", "f 2\n", "f\n"}) {
+    SCOPED_TRACE(last);
+    const std::string e = ingest_error("of.obj", v + last);
+    EXPECT_NE(e.find(": line 6: face with "), std::string::npos) << e;
+    EXPECT_NE(e.find("corners (a face needs at least 3)"), std::string::npos) << e;
+  }
+  expect_reference(read_mesh(write_file("og.obj",
+                                        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 1\n"
+                                        "f 1 2 3 4\nf 2 5 3\nl 1 2\np 3\n")));
 }
 
 }  // namespace

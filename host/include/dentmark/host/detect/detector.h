@@ -27,8 +27,9 @@ struct DetectionStats {
   double noise_floor_spread = 0.0;    // its robust sigma (1.4826 MAD) over the leaves
   double leaf_sigma_threshold = 0.0;  // a feature leaf's spread exceeds this (eq. 3)
   std::size_t feature_leaves = 0, feature_groups = 0;
-  double deviation_noise = 0.0;   // m, robust sigma of the per-pixel deviation
-  std::size_t working_bytes = 0;  // memory beyond the mesh
+  double deviation_noise = 0.0;     // m, robust sigma of the per-pixel deviation
+  std::size_t working_bytes = 0;    // memory beyond the mesh
+  std::size_t stray_triangles = 0;  // left out: reaching stray points far off the panel
 };
 
 struct Finding {

@@ -69,6 +69,8 @@ class LinearOctree {
   // Builds the leaves at the depth whose node edge is leaf_size (m). Triangles may come
   // in any order; the triangles are never sorted (see leaf_sums.cpp).
   static LinearOctree build(const ingest::MeshView& mesh, double leaf_size);
+  // The deepest octree build() makes: 2^16 finest nodes a side (65 m at 1 mm).
+  static constexpr int kMaxDepth = 16;
 
   const OctreeLeaves& leaves() const { return leaves_; }
   // Finest-depth key of the leaf holding triangle t (its centroid's cell).

@@ -1,0 +1,81 @@
+#include "stray_points.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace dentmark::detect {
+
+Box bounding_box(const ingest::MeshView& mesh) {
+  if (mesh.has_bounds()) return {mesh.bounds_min(), mesh.bounds_max()};
+  Box b{Eigen::Vector3f::Constant(std::numeric_limits<float>::max()),
+        Eigen::Vector3f::Constant(-std::numeric_limits<float>::max())};
+#pragma omp parallel
+  {
+    Box part = b;
+#pragma omp for nowait schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(mesh.vertex_count()); ++i) {
+      const Eigen::Vector3f v = mesh.vertex(static_cast<std::size_t>(i));
+      if (v.allFinite()) part.lo = part.lo.cwiseMin(v), part.hi = part.hi.cwiseMax(v);
+    }
+#pragma omp critical
+    b.lo = b.lo.cwiseMin(part.lo), b.hi = b.hi.cwiseMax(part.hi);
+  }
+  return b;
+}
+
+Box panel_box(const ingest::MeshView& mesh) {
+  Box b = bounding_box(mesh);
+  const std::size_t stride = std::max<std::size_t>(1, mesh.vertex_count() / 100000);
+  std::vector<float> x[3];
+  for (std::size_t i = 0; i < mesh.vertex_count(); i += stride) {
+    const Eigen::Vector3f v = mesh.vertex(i);
+    if (v.allFinite())
+      for (int a = 0; a < 3; ++a) x[a].push_back(v[a]);
+  }
+  if (x[0].size() < 100) return b;  // too few to tell a stray point
+  Box middle;
+  for (int a = 0; a < 3; ++a) {
+    const auto at = [&](double f) {
+      const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
+      std::nth_element(x[a].begin(), k, x[a].end());
+      return *k;
+    };
+    middle.lo[a] = at(0.01), middle.hi[a] = at(0.99);
+  }
+  // By the largest side on every axis: across a panel seen face-on the box is thin, and
+  // a handle stands proud of it.
+  const float margin = 0.25f * (middle.hi - middle.lo).maxCoeff();
+  const Eigen::Vector3f m = Eigen::Vector3f::Constant(margin);
+  b.lo = b.lo.cwiseMax(middle.lo - m), b.hi = b.hi.cwiseMin(middle.hi + m);
+  return b;
+}
+
+ingest::Mesh crop(const ingest::MeshView& mesh, const Box& box, std::size_t& dropped) {
+  const auto inside = [&](std::uint32_t i) {
+    const Eigen::Vector3f v = mesh.vertex(i);
+    return (v.array() >= box.lo.array()).all() && (v.array() <= box.hi.array()).all();
+  };
+  ingest::Mesh out;
+  std::vector<std::uint32_t> renumber(mesh.vertex_count(), std::numeric_limits<std::uint32_t>::max());
+  dropped = 0;
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    std::array<std::uint32_t, 3> tri = mesh.triangle(t);
+    if (!inside(tri[0]) || !inside(tri[1]) || !inside(tri[2])) {
+      ++dropped;
+      continue;
+    }
+    for (auto& i : tri) {
+      if (renumber[i] == std::numeric_limits<std::uint32_t>::max()) {
+        renumber[i] = static_cast<std::uint32_t>(out.vertices.size());
+        out.vertices.push_back(mesh.vertex(i));
+      }
+      i = renumber[i];
+    }
+    out.triangles.push_back(tri);
+  }
+  return out;
+}
+
+}  // namespace dentmark::detect
