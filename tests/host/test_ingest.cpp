@@ -814,7 +814,7 @@ TEST(Ingest, ObjFaceWithFewerThanThreeCornersIsAnError) {
   // A file cut inside its last face ('f 12//12 1//1') once read as if that face were not
   // there.
   const std::string v = "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 1//1 2//1 3//1\n";
-  for (const std::string& last : {"f 2//1 4//1", "f 2//1 4//1\n", "f 2 4\n", "f 2\n", "f\n"}) {
+  for (const std::string last : {"f 2//1 4//1", "f 2//1 4//1\n", "f 2 4\n", "f 2\n", "f\n"}) {
     SCOPED_TRACE(last);
     const std::string e = ingest_error("of.obj", v + last);
     EXPECT_NE(e.find(": line 6: face with "), std::string::npos) << e;
