@@ -383,21 +383,21 @@ TEST(BorderZone, ThreeMillimetresRoundTheWindowAndTheMapBorder) {
     EXPECT_TRUE(in(52, c)) << c;
     EXPECT_FALSE(in(54, c)) << c;
   }
-  // Map border (the empty ring at row/column 0 and 79/99).
-  EXPECT_TRUE(in(40, 1));
-  EXPECT_TRUE(in(40, 3));
-  EXPECT_FALSE(in(40, 4));
-  EXPECT_FALSE(in(40, 5));
-  EXPECT_TRUE(in(76, 20));
-  EXPECT_FALSE(in(74, 20));
-  EXPECT_TRUE(in(1, 1));
-  // Only surface pixels: none inside the window or on the empty ring.
-  EXPECT_FALSE(in(40, 50));
-  EXPECT_FALSE(in(30, 40));
-  EXPECT_FALSE(in(0, 40));
-  // Far from everything.
-  EXPECT_FALSE(in(15, 20));
-  EXPECT_FALSE(in(40, 80));
+  struct Probe {
+    int r, c;
+    bool in;
+    const char* what;
+  };
+  for (const Probe& p :
+       {Probe{40, 1, true, "next to the map's empty ring (row/column 0 and 79/99)"},
+        Probe{40, 3, true, "3 mm from the ring"}, Probe{40, 4, false, "4 mm from the ring"},
+        Probe{40, 5, false, "5 mm from the ring"}, Probe{76, 20, true, "3 mm from the bottom ring"},
+        Probe{74, 20, false, "5 mm from the bottom ring"}, Probe{1, 1, true, "in the corner"},
+        Probe{40, 50, false, "inside the window: no surface"},
+        Probe{30, 40, false, "inside the window: no surface"},
+        Probe{0, 40, false, "on the empty ring: no surface"}, Probe{15, 20, false, "far from everything"},
+        Probe{40, 80, false, "far from everything"}})
+    EXPECT_EQ(in(p.r, p.c), p.in) << p.what << " (" << p.r << ", " << p.c << ")";
 }
 
 TEST(BorderZone, SmallDropoutIsNotOutsideALargeOneIs) {
@@ -492,23 +492,23 @@ TEST(OrderFindings, SplitDefectMergesIntoTheMoreConfidentOne) {
 }
 
 TEST(OrderFindings, LargerLessConfidentReportJoinsASmallerOne) {
-  // Half the larger diameter counts: a 20 mm report 8 mm from a 4 mm one joins it.
-  Detection d;
-  d.defects.push_back(finding(0, kBump, 0.3, {0.0, 0.008, 0.0}, 0.020));
-  d.defects.push_back(finding(1, kBump, 0.9, {0.0, 0.0, 0.0}, 0.004));
-  d.labels = {0, 1};
-  order_findings(d);
-  ASSERT_EQ(d.defects.size(), 1u);
-  EXPECT_EQ(d.defects[0].reason, "entry 1");
-  EXPECT_EQ(d.labels, (std::vector<std::int32_t>{0, 0}));
-  // Just outside: 10.5 mm apart.
-  Detection e;
-  e.defects.push_back(finding(0, kBump, 0.3, {0.0, 0.0105, 0.0}, 0.020));
-  e.defects.push_back(finding(1, kBump, 0.9, {0.0, 0.0, 0.0}, 0.004));
-  e.labels = {0, 1};
-  order_findings(e);
-  ASSERT_EQ(e.defects.size(), 2u);
-  EXPECT_EQ(e.labels, (std::vector<std::int32_t>{1, 0}));
+  // Half the larger diameter counts: a 20 mm report 8 mm from a 4 mm one joins it; at
+  // 10.5 mm it does not.
+  const auto ordered = [](double apart) {
+    Detection d;
+    d.defects.push_back(finding(0, kBump, 0.3, {0.0, apart, 0.0}, 0.020));
+    d.defects.push_back(finding(1, kBump, 0.9, {0.0, 0.0, 0.0}, 0.004));
+    d.labels = {0, 1};
+    order_findings(d);
+    return d;
+  };
+  const Detection joined = ordered(0.008);
+  ASSERT_EQ(joined.defects.size(), 1u);
+  EXPECT_EQ(joined.defects[0].reason, "entry 1");
+  EXPECT_EQ(joined.labels, (std::vector<std::int32_t>{0, 0}));
+  const Detection apart = ordered(0.0105);
+  ASSERT_EQ(apart.defects.size(), 2u);
+  EXPECT_EQ(apart.labels, (std::vector<std::int32_t>{1, 0}));
 }
 
 }  // namespace
