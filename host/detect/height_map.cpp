@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "stray_points.h"
 #include "threads.h"
 
 namespace dentmark::detect {
@@ -33,31 +34,18 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // it (an outlier tens or hundreds of metres off, meshed to the panel) stays out of the
   // plane, whose scatter it would dominate by its distance, and off the map, which it
   // would stretch to gigapixels.
-  Eigen::Vector3f box_lo = Eigen::Vector3f::Constant(-std::numeric_limits<float>::max()), box_hi = -box_lo;
+  Box box;
   {
     const std::size_t stride = std::max<std::size_t>(1, leaves.size() / 100000);
     std::vector<float> x[3];
     for (std::size_t i = 0; i < leaves.size(); i += stride)
       if (leaves[i].area > 0.0f)
         for (int a = 0; a < 3; ++a) x[a].push_back(leaves[i].centroid[a]);
-    if (x[0].size() >= 100) {
-      for (int a = 0; a < 3; ++a) {
-        const auto at = [&](double f) {
-          const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
-          std::nth_element(x[a].begin(), k, x[a].end());
-          return *k;
-        };
-        box_lo[a] = at(0.01), box_hi[a] = at(0.99);
-      }
-      // By the largest side on every axis: across a panel seen face-on the box is thin,
-      // and a handle stands proud of it.
-      const float margin = 0.25f * (box_hi - box_lo).maxCoeff();
-      box_lo.array() -= margin, box_hi.array() += margin;
-    }
+    box = middle_box(x);
   }
   const auto in_box = [&](const OctreeLeaf& l) {
-    return l.area > 0.0f && (l.centroid.array() >= box_lo.array()).all() &&
-           (l.centroid.array() <= box_hi.array()).all();
+    return l.area > 0.0f && (l.centroid.array() >= box.lo.array()).all() &&
+           (l.centroid.array() <= box.hi.array()).all();
   };
   constexpr std::int64_t kChunks = 64;
   const double max_leaf_area = 3.0 * tree.leaf_size() * tree.leaf_size();

@@ -25,6 +25,23 @@ Box bounding_box(const ingest::MeshView& mesh) {
   return b;
 }
 
+Box middle_box(std::vector<float> (&x)[3]) {
+  Box b{Eigen::Vector3f::Constant(-std::numeric_limits<float>::max()),
+        Eigen::Vector3f::Constant(std::numeric_limits<float>::max())};
+  if (x[0].size() < 100) return b;
+  for (int a = 0; a < 3; ++a) {
+    const auto at = [&](double f) {
+      const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
+      std::nth_element(x[a].begin(), k, x[a].end());
+      return *k;
+    };
+    b.lo[a] = at(0.01), b.hi[a] = at(0.99);
+  }
+  const Eigen::Vector3f m = Eigen::Vector3f::Constant(0.25f * (b.hi - b.lo).maxCoeff());
+  b.lo -= m, b.hi += m;
+  return b;
+}
+
 Box panel_box(const ingest::MeshView& mesh) {
   Box b = bounding_box(mesh);
   const std::size_t stride = std::max<std::size_t>(1, mesh.vertex_count() / 100000);
@@ -34,21 +51,8 @@ Box panel_box(const ingest::MeshView& mesh) {
     if (v.allFinite())
       for (int a = 0; a < 3; ++a) x[a].push_back(v[a]);
   }
-  if (x[0].size() < 100) return b;  // too few to tell a stray point
-  Box middle;
-  for (int a = 0; a < 3; ++a) {
-    const auto at = [&](double f) {
-      const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
-      std::nth_element(x[a].begin(), k, x[a].end());
-      return *k;
-    };
-    middle.lo[a] = at(0.01), middle.hi[a] = at(0.99);
-  }
-  // By the largest side on every axis: across a panel seen face-on the box is thin, and
-  // a handle stands proud of it.
-  const float margin = 0.25f * (middle.hi - middle.lo).maxCoeff();
-  const Eigen::Vector3f m = Eigen::Vector3f::Constant(margin);
-  b.lo = b.lo.cwiseMax(middle.lo - m), b.hi = b.hi.cwiseMin(middle.hi + m);
+  const Box middle = middle_box(x);
+  b.lo = b.lo.cwiseMax(middle.lo), b.hi = b.hi.cwiseMin(middle.hi);
   return b;
 }
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <vector>
 
 #include "dentmark/host/ingest/mesh.h"
 #include "dentmark/host/ingest/mesh_view.h"
@@ -18,6 +19,12 @@ struct Box {
 
 // The vertices' bounding box (the view's own when it has one).
 Box bounding_box(const ingest::MeshView& mesh);
+
+// The box that holds the panel, from sampled points (x, y, z per axis; reordered): per
+// axis their middle 98 %, widened by a quarter of the box's largest side each way
+// (across a panel seen face-on the box is thin, and a handle stands proud of it).
+// Unbounded when fewer than 100 points are given: too few to tell a stray one.
+Box middle_box(std::vector<float> (&samples)[3]);
 
 // The box that holds the panel: per axis, the middle 98 % of the vertices (sampled),
 // widened by a quarter of its largest side each way. Every vertex of a real scan is
