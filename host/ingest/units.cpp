@@ -33,8 +33,13 @@ ScaleEvidence measure_scale(const MeshView& mesh) {
     double d2 = 0.0;
     for (auto& values : axis) {
       if (values.empty()) break;
-      std::sort(values.begin(), values.end());
-      const double lo = values[values.size() * 2 / 100], hi = values[values.size() * 98 / 100];
+      // Two selections, not a sort: a third of the time, the same percentiles.
+      const auto at = [&](std::size_t percent) {
+        const auto it = values.begin() + static_cast<std::ptrdiff_t>(values.size() * percent / 100);
+        std::nth_element(values.begin(), it, values.end());
+        return *it;
+      };
+      const double lo = at(2), hi = at(98);
       d2 += (hi - lo) * (hi - lo);
     }
     e.extent = std::sqrt(d2);
