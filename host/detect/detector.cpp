@@ -233,8 +233,9 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
   }();
   lap("samples");
 
-  const CandidateScene scene{mesh,    map,        reference,          ref,   not_ring, spike, labels,
-                             samples, st.spacing, st.deviation_noise, coarse};
+  const CandidateScene scene{mesh,           map,    reference, ref,        not_ring,
+                             spike,          labels, samples,   st.spacing, st.deviation_noise,
+                             cfg.min_height, coarse};
   for (int ci = 1; ci < ncomp; ++ci) {
     const Candidate& comp = comps[static_cast<std::size_t>(ci)];
     if (comp.pixels.empty()) continue;

@@ -18,6 +18,11 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 // deviation noise is not a smooth panel: the candidate cannot be measured as a dent
 // there, and is taken as part of the design around it.
 constexpr double kRoughRing = 3.5;
+// ... and this fraction of the smallest defect height. Without it a scan with no noise
+// (a mesh made from CAD or by a simulator) was rough everywhere: its deviation noise is
+// float rounding, 0.04 um, and a clean ring's residual 0.03-0.3 um; a 24 mm, 0.44 mm
+// deep dent was taken for design. A strip no quadratic follows is off by tens of um.
+constexpr double kSmoothRingFloor = 0.1;
 
 // The pixels a candidate is measured in: its bounding box grown by a margin.
 struct Box {
@@ -284,7 +289,8 @@ Measurement measure_candidate(const CandidateScene& scene, const std::vector<std
     return scene.coarse ? static_cast<double>(dev.at(r, c)) : dev.smooth(r, c);
   };
   Measurement m;
-  m.rough_surroundings = reference.ring_rms() > kRoughRing * scene.deviation_noise;
+  m.rough_surroundings = reference.ring_rms() >
+                         std::max(kRoughRing * scene.deviation_noise, kSmoothRingFloor * scene.min_height);
   // Peak: the candidate's pixel of largest smoothed |deviation| (raw on coarse maps).
   m.peak = pixels.front();
   for (auto k : pixels) {

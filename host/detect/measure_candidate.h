@@ -27,6 +27,7 @@ struct CandidateScene {
   const PixelSamples& samples;        // the scan's samples under the candidates
   double spacing = 0.0;               // of the scan's samples (m)
   double deviation_noise = 0.0;       // robust sigma of the deviation (m)
+  double min_height = 0.0;            // the smallest defect height (m)
   bool coarse = false;                // a pixel holds only one or two samples
 };
 
