@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -95,6 +96,9 @@ int run_detect(const DetectArgs& a) {
   if (det.stats.stray_triangles > 0)
     log::info(a.scan + ": " + std::to_string(det.stats.stray_triangles) +
               " triangles reach stray points far off the panel: left out");
+  if (det.stats.background_area > 0.0)
+    log::info(a.scan + ": " + std::to_string(static_cast<int>(std::lround(det.stats.background_area * 1e4))) +
+              " cm² of background (a surface far behind the panel) left out");
   det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
   const auto t_detect = Clock::now();
   try {

@@ -137,6 +137,7 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
 
   // --- Height map and robust reference surface ---
   out.map = build_height_map(tree, h, cfg.hole_depth);
+  st.background_area = out.map.background_area;
   lap("map");
   const HeightMap& map = out.map;
   const int rows = map.rows, cols = map.cols;

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "background.h"
 #include "stray_points.h"
 #include "threads.h"
 
@@ -51,44 +52,65 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   const double max_leaf_area = 3.0 * tree.leaf_size() * tree.leaf_size();
   Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
   if (!leaves.empty()) x0 = leaves[leaves.size() / 2].centroid.cast<double>();
-  std::vector<Sums> chunk(kChunks);
   const auto leaf_count = static_cast<std::int64_t>(leaves.size());
+  // The plane through the leaves `use` selects: its frame in map.origin and map.axes.
+  const auto fit_plane = [&](auto use) {
+    std::vector<Sums> chunk(kChunks);
 #pragma omp parallel for schedule(static)
-  for (std::int64_t ch = 0; ch < kChunks; ++ch) {
-    Sums& cs = chunk[static_cast<std::size_t>(ch)];
-    for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
-      const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
-      cs.s += l.sum_an.cast<double>();
-      if (!in_box(l)) continue;
-      // A leaf holds at most ~1.5 h² of surface (a plane cuts a cube in at most √2 h²);
-      // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
-      // metres long), whose whole area lands in one leaf and would tilt the plane.
-      const double a = std::min(static_cast<double>(l.area), max_leaf_area);
-      const Eigen::Vector3d d = l.centroid.cast<double>() - x0;
-      cs.area += a, cs.p += a * d, cs.pp += a * d * d.transpose();
+    for (std::int64_t ch = 0; ch < kChunks; ++ch) {
+      Sums& cs = chunk[static_cast<std::size_t>(ch)];
+      for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
+        const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
+        cs.s += l.sum_an.cast<double>();
+        if (!use(static_cast<std::size_t>(i))) continue;
+        // A leaf holds at most ~1.5 h² of surface (a plane cuts a cube in at most √2 h²);
+        // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
+        // metres long), whose whole area lands in one leaf and would tilt the plane.
+        const double a = std::min(static_cast<double>(l.area), max_leaf_area);
+        const Eigen::Vector3d d = l.centroid.cast<double>() - x0;
+        cs.area += a, cs.p += a * d, cs.pp += a * d * d.transpose();
+      }
     }
-  }
-  Sums all;
-  for (const Sums& cs : chunk) all.area += cs.area, all.p += cs.p, all.s += cs.s, all.pp += cs.pp;
-  const double A = all.area;
-  const Eigen::Vector3d S = all.s;
-  if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
-  const Eigen::Vector3d mean = all.p / A;  // relative to x0
-  const Eigen::Vector3d c = x0 + mean;
-  const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
-  Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
-  // Towards the sensor at the frame origin; if the origin lies on the plane, towards
-  // the side the triangles face.
-  const double side = w.dot(-c);
-  if (std::abs(side) > 1e-3 ? side < 0 : w.dot(S) < 0) w = -w;
-  Eigen::Vector3d u = eig.eigenvectors().col(2).normalized();
-  u = (u - u.dot(w) * w).normalized();
-  const Eigen::Vector3d v = w.cross(u);
-  map.origin = c;
-  map.axes.row(0) = u.transpose();
-  map.axes.row(1) = v.transpose();
-  map.axes.row(2) = w.transpose();
+    Sums all;
+    for (const Sums& cs : chunk) all.area += cs.area, all.p += cs.p, all.s += cs.s, all.pp += cs.pp;
+    const double A = all.area;
+    const Eigen::Vector3d S = all.s;
+    if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
+    const Eigen::Vector3d mean = all.p / A;  // relative to x0
+    const Eigen::Vector3d c = x0 + mean;
+    const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+    Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
+    // The scatter's thinnest direction is the panel's normal when the scan is one
+    // surface. With a wall far behind the panel in the scan as well, the gap between the
+    // two can be the scatter's widest extent, and the plane turns edge-on to the panel.
+    // The triangles' mean normal still faces the sensor: where the two disagree by more
+    // than 45 degrees it is the map's normal.
+    if (S.norm() > 0.1 * A && std::abs(w.dot(S.normalized())) < std::sqrt(0.5)) w = S.normalized();
+    // Towards the sensor at the frame origin; if the origin lies on the plane, towards
+    // the side the triangles face.
+    const double side = w.dot(-c);
+    if (std::abs(side) > 1e-3 ? side < 0 : w.dot(S) < 0) w = -w;
+    // u along the scatter's widest direction across w.
+    // (Far off the panel's normal the wall's gap can be that direction: then the next.)
+    Eigen::Vector3d u = eig.eigenvectors().col(2).normalized();
+    u = u - u.dot(w) * w;
+    if (u.norm() < 0.5) u = eig.eigenvectors().col(1) - eig.eigenvectors().col(1).dot(w) * w;
+    u.normalize();
+    const Eigen::Vector3d v = w.cross(u);
+    map.origin = c;
+    map.axes.row(0) = u.transpose();
+    map.axes.row(1) = v.transpose();
+    map.axes.row(2) = w.transpose();
+  };
+  fit_plane([&](std::size_t i) { return in_box(leaves[i]); });
+  // A wall or the floor far behind the panel: its leaves leave the plane and the map.
+  const Background background = find_background(tree, map, box);
+  map.background_area = background.area;
+  const auto on_panel = [&](std::size_t i) {
+    return in_box(leaves[i]) && (background.leaf.empty() || !background.leaf[i]);
+  };
+  if (!background.leaf.empty()) fit_plane(on_panel);
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
@@ -98,7 +120,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < count; ++i)
     if (leaves[i].area > 0.0f) q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
-  const auto on_map = [&](std::size_t i) { return in_box(leaves[i]); };
+  const auto on_map = on_panel;
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {

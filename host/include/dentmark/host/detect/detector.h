@@ -30,6 +30,7 @@ struct DetectionStats {
   double deviation_noise = 0.0;     // m, robust sigma of the per-pixel deviation
   std::size_t working_bytes = 0;    // memory beyond the mesh
   std::size_t stray_triangles = 0;  // left out: reaching stray points far off the panel
+  double background_area = 0.0;     // m² of the map taken off: a wall or floor behind the panel
 };
 
 struct Finding {

@@ -25,6 +25,9 @@ struct HeightMap {
   std::vector<Eigen::Vector3f> behind;
   // The sensor in map coordinates, when the scan frame's origin is the sensor (w > 0.1 m).
   bool has_viewpoint = false;
+  // Surface left out as background: a wall or floor far behind the panel (m², see
+  // host/detect/background.h).
+  double background_area = 0.0;
   Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();
 
   std::size_t size() const { return static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows); }
