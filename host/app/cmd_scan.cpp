@@ -244,6 +244,8 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   sc->add_option("--max-diameter", s->options.max_diameter, "m");
   sc->add_option("--min-depth", s->options.min_depth, "m");
   sc->add_option("--max-depth", s->options.max_depth, "m");
+  sc->add_option("--rim", s->options.rim,
+                 "Each dent's ring of pushed-up metal (a bump's trough), as a fraction of its depth");
   sc->add_option("--outliers", s->options.outlier_fraction, "Fraction of points thrown 2-20 mm off");
   sc->add_option("--dropouts", s->options.dropouts, "Number of missing discs");
   sc->add_option("--holes", s->options.holes, "Number of through-holes (defects) showing the inner panel");

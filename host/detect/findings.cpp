@@ -53,6 +53,23 @@ Finding hole_finding(const HoleRegion& hole, const HeightMap& map, const std::ve
   return f;
 }
 
+namespace {
+
+// A dent pushes the metal around it up into a low ring (and a bump has a trough around
+// it): a candidate of the opposite sign, wider and shallower, around the defect. Seen
+// in part (an arc above the threshold), its centre is off the defect's, but within the
+// ring's reach (the defect's diameter) and its own radius. It is the same defect,
+// reported once.
+bool is_rim_of(const protocol::Defect& rim, const protocol::Defect& core, double apart) {
+  using protocol::DefectClass;
+  const auto raised = [](const protocol::Defect& d) { return d.defect_class == DefectClass::kBump; };
+  const auto sunk = [](const protocol::Defect& d) { return d.defect_class == DefectClass::kDent; };
+  return ((raised(rim) && sunk(core)) || (sunk(rim) && raised(core))) && rim.diameter > core.diameter &&
+         std::abs(rim.height) < std::abs(core.height) && apart < core.diameter && apart < 0.5 * rim.diameter;
+}
+
+}  // namespace
+
 void order_findings(Detection& out) {
   std::stable_sort(out.defects.begin(), out.defects.end(),
                    [](const Finding& a, const Finding& b) { return a.defect.score > b.defect.score; });
@@ -72,9 +89,18 @@ void order_findings(Detection& out) {
     const auto& di = out.defects[i].defect;
     for (std::size_t j = 0; j < kept.size(); ++j) {
       const auto& dj = kept[j].defect;
-      if (di.defect_class == dj.defect_class &&
-          (di.position - dj.position).norm() < 0.5 * std::max(di.diameter, dj.diameter)) {
+      const double apart = (di.position - dj.position).norm();
+      if (di.defect_class == dj.defect_class && apart < 0.5 * std::max(di.diameter, dj.diameter)) {
         merged_into[i] = static_cast<std::int32_t>(j);
+        break;
+      }
+      if (is_rim_of(di, dj, apart)) {  // i is j's rim: j stays
+        merged_into[i] = static_cast<std::int32_t>(j);
+        break;
+      }
+      if (is_rim_of(dj, di, apart)) {  // the rim came first: the defect takes its place
+        merged_into[i] = static_cast<std::int32_t>(j);
+        kept[j] = std::move(out.defects[i]);
         break;
       }
     }

@@ -18,7 +18,9 @@ Finding hole_finding(const HoleRegion& hole, const HeightMap& map, const std::ve
 
 // Defects most confident first. One defect split into two candidates (by a dropout, say)
 // is reported once: a less confident report of the same class whose centre lies within
-// half the larger of the two diameters of a kept one joins it. Ids run from 1 over the
+// half the larger of the two diameters of a kept one joins it; so does a dent's rim (a
+// wider, shallower bump around it: centre within the dent's diameter and the rim's
+// radius) or a bump's trough, whichever came first. Ids run from 1 over the
 // defects, then the features. On entry each defect's id is its index in
 // detection.labels (0 .. defects - 1; std::logic_error otherwise); labels follow.
 void order_findings(Detection& detection);

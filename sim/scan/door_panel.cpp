@@ -83,7 +83,10 @@ double DoorPanel::z(double x, double y) const {
   double z = z_nominal(x, y);
   for (const PlantedDefect& d : defects_) {
     const double r = std::hypot(x - d.centre.x(), y - d.centre.y());
-    if (r < 0.5 * d.diameter) z += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+    if (r < 0.5 * d.diameter)
+      z += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+    else if (r < d.diameter && d.rim > 0.0)
+      z -= d.rim * d.height * std::pow(std::sin(std::numbers::pi * (2.0 * r / d.diameter - 1.0)), 2);
   }
   return z;
 }

@@ -28,10 +28,12 @@ std::vector<PlantedDefect> place_defects(const ScanOptions& o, const DoorPanel& 
       d.diameter = o.min_diameter + (o.max_diameter - o.min_diameter) * u01(rng);
       const double mag = o.min_depth * std::pow(o.max_depth / o.min_depth, u01(rng));
       d.height = u01(rng) < 0.5 ? -mag : mag;
-      if (probe.feature_distance(d.centre.x(), d.centre.y()) < 0.5 * d.diameter + 0.04) continue;
+      d.rim = o.rim;
+      const auto reach = [](const PlantedDefect& p) { return p.rim > 0.0 ? p.diameter : 0.5 * p.diameter; };
+      if (probe.feature_distance(d.centre.x(), d.centre.y()) < reach(d) + 0.04) continue;
       bool clear = true;
       for (const auto& e : out)
-        if ((e.centre - d.centre).norm() < 0.5 * (e.diameter + d.diameter) + 0.03) clear = false;
+        if ((e.centre - d.centre).norm() < reach(e) + reach(d) + 0.03) clear = false;
       if (!clear) continue;
       out.push_back(d);
       break;
@@ -74,6 +76,7 @@ SynthScan synthesize_scan(const ScanOptions& o) {
   if (!(o.min_diameter > 0 && o.max_diameter >= o.min_diameter && o.min_depth > 0 &&
         o.max_depth >= o.min_depth))
     throw std::invalid_argument("defect size ranges must be positive and ordered");
+  if (!(o.rim >= 0.0 && o.rim <= 1.0)) throw std::invalid_argument("rim must be in [0, 1]");
   if (!(o.outlier_fraction >= 0.0 && o.outlier_fraction <= 0.1))
     throw std::invalid_argument("outlier fraction must be in [0, 0.1]");
   const double W = o.shape.width, H = o.shape.height;

@@ -264,6 +264,21 @@ TEST(Detect, NoiseFreeScanFindsEveryDefect) {
   EXPECT_LE(r.eval.max_depth_error, 10e-6);
 }
 
+TEST(Detect, ADentsRimIsPartOfTheDent) {
+  // A dent pushes the metal around it up into a low ring (a bump has a trough around
+  // it). The ring came out as a second defect of the opposite kind, wider and centred
+  // on the first: here a 31 mm "dent" 31 um deep around a 12 mm bump.
+  sim::scan::ScanOptions o = small_door(21);
+  for (auto& d : o.planted) d.rim = 0.3, d.height *= 3.0;
+  o.planted.push_back({{0.15, 0.16}, 0.024, -4e-4, 0.3});
+  const ScanRun r = run(o);
+  EXPECT_EQ(r.eval.matched, 6);
+  EXPECT_EQ(r.eval.false_alarms, 0);
+  EXPECT_EQ(r.eval.wrong_sign, 0);
+  EXPECT_LE(r.eval.max_position_error, 0.001);
+  EXPECT_LE(r.eval.max_depth_error, 30e-6);
+}
+
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
   // A scanner whose view is larger than the panel records the wall behind it too. The
   // wall surrounded the panel on the map, a step of half a metre behind it, and showed

@@ -14,6 +14,9 @@ struct PlantedDefect {
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // panel x, y (m)
   double diameter = 0.01;                            // full width of the cos² profile (m)
   double height = -1e-4;                             // signed, negative = dent (m)
+  // The metal it pushed aside: a ring from its edge out to twice its radius, of the
+  // opposite sign, rim x |height| at its crest (0: none). Truth is the core's.
+  double rim = 0.0;
 };
 
 struct PanelShape {

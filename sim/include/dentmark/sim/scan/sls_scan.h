@@ -21,9 +21,10 @@ struct ScanOptions {
   int defects = 8;                                   // random dents and bumps to plant
   double min_diameter = 0.005, max_diameter = 0.03;  // m
   double min_depth = 5e-5, max_depth = 5e-4;         // m, |height|
-  double outlier_fraction = 0.0;                     // fraction of points thrown 2..20 mm along the ray
-  int dropouts = 0;                                  // missing discs (specular spots), 2..6 mm radius
-  int holes = 0;  // through-holes (defects), the inner panel seen through them
+  double rim = 0.0;               // random defects' rim (PlantedDefect::rim): the metal pushed aside
+  double outlier_fraction = 0.0;  // fraction of points thrown 2..20 mm along the ray
+  int dropouts = 0;               // missing discs (specular spots), 2..6 mm radius
+  int holes = 0;                  // through-holes (defects), the inner panel seen through them
   double min_hole_diameter = 0.003, max_hole_diameter = 0.015;  // m
   double hole_backdrop = 0.06;                                  // m, inner structure behind the skin
   bool shuffle = false;                                         // triangles (and vertices) in random order
