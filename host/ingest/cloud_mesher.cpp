@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -50,6 +51,82 @@ View choose_view(const std::vector<Eigen::Vector3f>& pts) {
   return view;
 }
 
+// 3D distances between image neighbours above this are depth jumps, not surface.
+float max_edge_of(std::vector<float>& neighbour_distances) {
+  if (neighbour_distances.empty()) return std::numeric_limits<float>::max();
+  const auto mid = neighbour_distances.begin() + static_cast<std::ptrdiff_t>(neighbour_distances.size() / 2);
+  std::nth_element(neighbour_distances.begin(), mid, neighbour_distances.end());
+  return 4.0f * *mid;
+}
+
+// An organised cloud, as a camera writes it: the points in raster order, row after row
+// (the missing ones left out or NaN). Then each row is stitched to the next, every point
+// kept, whatever the density: a panel at 55 degrees to the view is twice as dense at its
+// far end as at its near one, which no single grid cell fits. Returns false when the
+// order is not that of rows (the caller then meshes on a grid).
+bool mesh_raster_rows(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
+                      const std::vector<std::uint32_t>& valid) {
+  const auto& pts = mesh.vertices;
+  const std::size_t n = valid.size();
+  if (n < 64) return false;
+  // Along a row the image steps are alike; the median step is the row's direction.
+  std::vector<double> dx, dy;
+  const std::size_t stride = std::max<std::size_t>(1, n / 100000);
+  for (std::size_t i = 0; i + 1 < n; i += stride) {
+    const Eigen::Vector2d d = img[valid[i + 1]] - img[valid[i]];
+    dx.push_back(d.x()), dy.push_back(d.y());
+  }
+  const auto median = [](std::vector<double>& v) {
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+  };
+  const Eigen::Vector2d step(median(dx), median(dy));
+  if (!(step.norm() > 0.0)) return false;
+  const Eigen::Vector2d along = step.normalized();
+  // Rows: runs that go forward along it (a gap of missing points goes forward too; the
+  // next row starts back at the other side).
+  std::vector<double> t(n);
+  for (std::size_t i = 0; i < n; ++i) t[i] = img[valid[i]].dot(along);
+  std::vector<std::size_t> row_start{0};
+  for (std::size_t i = 1; i < n; ++i)
+    if (t[i] <= t[i - 1]) row_start.push_back(i);
+  row_start.push_back(n);
+  const std::size_t rows = row_start.size() - 1;
+  if (rows < 3 || n / rows < 8) return false;
+  std::vector<float> along_row;
+  for (std::size_t r = 0; r < rows && along_row.size() < 200000; r += std::max<std::size_t>(1, rows / 2000))
+    for (std::size_t i = row_start[r]; i + 1 < row_start[r + 1]; ++i)
+      along_row.push_back((pts[valid[i]] - pts[valid[i + 1]]).norm());
+  const float max_edge = max_edge_of(along_row);
+  const auto ok = [&](std::uint32_t a, std::uint32_t b) { return (pts[a] - pts[b]).norm() <= max_edge; };
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  triangles.reserve(2 * n);
+  const auto add = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const std::uint32_t p = valid[a], q = valid[b], r = valid[c];
+    if (ok(p, q) && ok(q, r) && ok(p, r)) triangles.push_back({p, q, r});
+  };
+  // Zip each row to the next: advance on the row whose next point comes first.
+  for (std::size_t r = 0; r + 1 < rows; ++r) {
+    const std::size_t a1 = row_start[r + 1], b1 = row_start[r + 2];
+    std::size_t i = row_start[r], j = row_start[r + 1];
+    while (i + 1 < a1 || j + 1 < b1) {
+      if (j + 1 >= b1 || (i + 1 < a1 && t[i + 1] <= t[j + 1])) {
+        add(i, i + 1, j);
+        ++i;
+      } else {
+        add(i, j + 1, j);
+        ++j;
+      }
+    }
+  }
+  // Rows that are not the camera's (a cloud sorted some other way) leave most points
+  // without triangles: a grid serves those better.
+  if (triangles.size() < n) return false;
+  mesh.triangles = std::move(triangles);
+  return true;
+}
+
 }  // namespace
 
 void mesh_point_cloud(Mesh& mesh) {
@@ -70,6 +147,7 @@ void mesh_point_cloud(Mesh& mesh) {
     valid.push_back(static_cast<std::uint32_t>(i));
   }
   if (valid.size() < 3) return;
+  if (mesh_raster_rows(mesh, img, valid)) return;
   const Eigen::Vector2d ext = (hi - lo).cwiseMax(1e-12);
   // Spacing in the image: first from the bounding box, then corrected by the
   // fraction of a coarse grid that is occupied (panels have openings and margins).
@@ -112,12 +190,7 @@ void mesh_point_cloud(Mesh& mesh) {
     for (std::size_t x = 0; x + 1 < W; ++x)
       if (grid[y * W + x] != kNone && grid[y * W + x + 1] != kNone)
         edges.push_back((pts[grid[y * W + x]] - pts[grid[y * W + x + 1]]).norm());
-  float max_edge = std::numeric_limits<float>::max();
-  if (!edges.empty()) {
-    std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2),
-                     edges.end());
-    max_edge = 4.0f * edges[edges.size() / 2];
-  }
+  const float max_edge = max_edge_of(edges);
   auto ok = [&](std::uint32_t a, std::uint32_t b) { return (pts[a] - pts[b]).norm() <= max_edge; };
   auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
     if (ok(a, b) && ok(b, c) && ok(a, c)) mesh.triangles.push_back({a, b, c});

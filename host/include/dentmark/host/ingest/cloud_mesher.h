@@ -1,7 +1,9 @@
 #pragma once
 // Meshes a point cloud in the sensor's view (2.5D): a structured-light sensor sees the
 // surface as a height field over its image, so neighbours in the image are neighbours
-// on the surface. Works for organised and unorganised clouds, in any point order.
+// on the surface. An organised cloud (points in the camera's raster order, missing ones
+// left out or NaN) is stitched row to row, every point kept at any density; any other
+// order is meshed on an image grid of the cloud's mean spacing, one point per cell.
 
 #include <Eigen/Core>
 #include <vector>
