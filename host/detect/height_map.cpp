@@ -87,10 +87,10 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     // The triangles' mean normal still faces the sensor: where the two disagree by more
     // than 45 degrees it is the map's normal.
     if (S.norm() > 0.1 * A && std::abs(w.dot(S.normalized())) < std::sqrt(0.5)) w = S.normalized();
-    // Towards the sensor at the frame origin; if the origin lies on the plane, towards
-    // the side the triangles face.
+    // Towards the sensor at the frame origin. An origin within 10 cm of the plane is no
+    // sensor's (a profiler's or a part's frame): then towards the side the triangles face.
     const double side = w.dot(-c);
-    if (std::abs(side) > 1e-3 ? side < 0 : w.dot(S) < 0) w = -w;
+    if (std::abs(side) > 0.1 ? side < 0 : w.dot(S) < 0) w = -w;
     // u along the scatter's widest direction across w.
     // (Far off the panel's normal the wall's gap can be that direction: then the next.)
     Eigen::Vector3d u = eig.eigenvectors().col(2).normalized();

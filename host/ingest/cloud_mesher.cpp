@@ -45,9 +45,12 @@ View choose_view(const std::vector<Eigen::Vector3f>& pts) {
     c += d * d.transpose();
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(c);
+  // Depth along +z where the axis allows: a profiler's heights and a part frame's "up"
+  // face that way.
+  const double sign = eig.eigenvectors().col(0).z() < 0.0 ? -1.0 : 1.0;
   view.R.row(0) = eig.eigenvectors().col(2).transpose();
-  view.R.row(1) = eig.eigenvectors().col(1).transpose();
-  view.R.row(2) = eig.eigenvectors().col(0).transpose();
+  view.R.row(1) = sign * eig.eigenvectors().col(1).transpose();
+  view.R.row(2) = sign * eig.eigenvectors().col(0).transpose();
   return view;
 }
 
@@ -127,6 +130,25 @@ bool mesh_raster_rows(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
   return true;
 }
 
+// Triangles facing the viewer: the sensor at the origin in a perspective view, the +depth
+// side in an orthographic one (what the PLY shows to a viewer that culls back faces, and
+// the side a scan without a sensor at its origin takes for outside).
+void face_the_view(Mesh& mesh, const View& view) {
+  std::size_t towards = 0, away = 0;
+  const std::size_t stride = std::max<std::size_t>(1, mesh.triangles.size() / 10000);
+  for (std::size_t i = 0; i < mesh.triangles.size(); i += stride) {
+    const auto& t = mesh.triangles[i];
+    const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>(), b = mesh.vertices[t[1]].cast<double>(),
+                          c = mesh.vertices[t[2]].cast<double>();
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const Eigen::Vector3d to_viewer =
+        view.perspective ? Eigen::Vector3d(-a) : Eigen::Vector3d(view.R.row(2).transpose());
+    (n.dot(to_viewer) >= 0.0 ? towards : away) += 1;
+  }
+  if (away > towards)
+    for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
+}
+
 }  // namespace
 
 void mesh_point_cloud(Mesh& mesh) {
@@ -147,7 +169,10 @@ void mesh_point_cloud(Mesh& mesh) {
     valid.push_back(static_cast<std::uint32_t>(i));
   }
   if (valid.size() < 3) return;
-  if (mesh_raster_rows(mesh, img, valid)) return;
+  if (mesh_raster_rows(mesh, img, valid)) {
+    face_the_view(mesh, view);
+    return;
+  }
   const Eigen::Vector2d ext = (hi - lo).cwiseMax(1e-12);
   // Spacing in the image: first from the bounding box, then corrected by the
   // fraction of a coarse grid that is occupied (panels have openings and margins).
@@ -221,6 +246,7 @@ void mesh_point_cloud(Mesh& mesh) {
       }
     }
   }
+  face_the_view(mesh, view);
 }
 
 }  // namespace dentmark::ingest

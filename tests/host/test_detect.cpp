@@ -10,6 +10,7 @@
 #include <random>
 
 #include "dentmark/host/detect/detector.h"
+#include "dentmark/host/ingest/cloud_mesher.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
 #include "dentmark/host/report/scan_truth.h"
@@ -277,6 +278,34 @@ TEST(Detect, ADentsRimIsPartOfTheDent) {
   EXPECT_EQ(r.eval.wrong_sign, 0);
   EXPECT_LE(r.eval.max_position_error, 0.001);
   EXPECT_LE(r.eval.max_depth_error, 30e-6);
+}
+
+TEST(Detect, AProfilersHeightsReadUpAsOutside) {
+  // A laser profiler writes heights over its travel (x across the line, y along the
+  // travel, z up towards it) from an origin near the panel, not in front of it: the
+  // view is orthographic and outside is where the meshed triangles face. The origin a
+  // few millimetres below the panel's plane was taken for the sensor (the dent read as a
+  // bump), and the mesher's faces pointed whichever way the eigen solver's axis did.
+  for (const double tilt : {0.0, 0.3})
+    for (const int order : {0, 1, 2, 3}) {
+      ingest::Mesh cloud;
+      const double step = 0.0005;
+      for (int rr = 0; rr < 500; ++rr)
+        for (int cc = 0; cc < 300; ++cc) {
+          const int r = order & 1 ? 499 - rr : rr, c = order & 2 ? 299 - cc : cc;
+          const double x = (c - 150) * step, y = r * step;
+          const double d = std::hypot(x - 0.01, y - 0.12);
+          double z = 0.005 + tilt * x - 0.2 * (x * x + (y - 0.16) * (y - 0.16));
+          if (d < 0.008) z -= 2e-4 * std::pow(std::cos(std::numbers::pi * d / 0.016), 2);
+          cloud.vertices.emplace_back(x, y, z);
+        }
+      ingest::mesh_point_cloud(cloud);
+      const detect::Detection det = detect::detect(cloud, detect::DetectConfig{});
+      ASSERT_EQ(det.defects.size(), 1u) << "tilt " << tilt << ", order " << order;
+      EXPECT_EQ(det.defects[0].defect.defect_class, protocol::DefectClass::kDent)
+          << "tilt " << tilt << ", order " << order;
+      EXPECT_NEAR(det.defects[0].defect.height, -2e-4, 2e-5) << "tilt " << tilt << ", order " << order;
+    }
 }
 
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {

@@ -271,11 +271,11 @@ TEST(Ingest, OrganisedCloudIsStitchedRowByRowAtAnyDensity) {
   }
   const double full = std::pow((n - 1) * s, 2);
   EXPECT_NEAR(area, full, 0.01 * full);
-  // Every triangle faces one way.
-  const Eigen::Vector3f first = (m.vertices[m.triangles[0][1]] - m.vertices[m.triangles[0][0]])
-                                    .cross(m.vertices[m.triangles[0][2]] - m.vertices[m.triangles[0][0]]);
+  // Every triangle faces the sensor at the origin.
   for (const auto& t : m.triangles)
-    EXPECT_GT((m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]).dot(first),
+    EXPECT_GT((m.vertices[t[1]] - m.vertices[t[0]])
+                  .cross(m.vertices[t[2]] - m.vertices[t[0]])
+                  .dot(-m.vertices[t[0]]),
               0.0f);
 }
 

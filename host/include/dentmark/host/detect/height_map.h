@@ -39,7 +39,9 @@ struct HeightMap {
   long pixel_of(double pu, double pv) const;
 };
 
-// Projects the leaves. 'w' points to the frame origin's side (the sensor's) of the plane.
+// Projects the leaves. 'w' points to the frame origin's side (the sensor's) of the plane,
+// or, where the origin lies within 10 cm of it (no sensor's: a profiler's or a part's
+// frame), to the side the triangles face.
 // A single view sees only the front surface of each column: leaves more than layer_depth
 // behind the column's front go to 'behind' instead of being averaged into the pixel.
 HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth);
