@@ -107,10 +107,10 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   // A wall or the floor far behind the panel: its leaves leave the plane and the map.
   const Background background = find_background(tree, map, box);
   map.background_area = background.area;
-  const auto on_panel = [&](std::size_t i) {
+  const auto on_map = [&](std::size_t i) {
     return in_box(leaves[i]) && (background.leaf.empty() || !background.leaf[i]);
   };
-  if (!background.leaf.empty()) fit_plane(on_panel);
+  if (!background.leaf.empty()) fit_plane(on_map);
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
@@ -120,7 +120,6 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < count; ++i)
     if (leaves[i].area > 0.0f) q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
-  const auto on_map = on_panel;
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {
