@@ -26,6 +26,11 @@ constexpr double kRoughRing = 3.5;
 // by tens of um.
 constexpr double kSmoothRingFloor = 0.5;
 
+// A scan vertex this far off the reference is not the panel's skin but something seen
+// past it through a gap between its samples (a wall 0.6 m behind gave "dents" 640 mm
+// deep, measured on the wall's vertices); no dent or bump is that deep.
+constexpr double kFarSample = 0.02;
+
 // The pixels a candidate is measured in: its bounding box grown by a margin.
 struct Box {
   int r0 = 0, r1 = 0, c0 = 0, c1 = 0;      // the candidate's own bounds
@@ -271,6 +276,7 @@ std::optional<double> sampled_apex_height(const CandidateScene& scene, const Loc
       scene.samples.append(k, pts);
       for (const auto& q : pts) {
         const double refw = reference.at(q.x(), q.y(), static_cast<std::size_t>(k));
+        if (std::abs(q.z() - refw) > kFarSample) continue;  // seen past the panel
         near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[k]});
       }
     }
@@ -334,7 +340,7 @@ Measurement measure_candidate(const CandidateScene& scene, const std::vector<std
         continue;
       const double dv = (q.z() - reference.at(q.x(), q.y(), static_cast<std::size_t>(k))) *
                         map.cos_tilt[static_cast<std::size_t>(k)];
-      if (sign * dv > best) best = sign * dv, m.position = q;
+      if (sign * dv > best && std::abs(dv) <= kFarSample) best = sign * dv, m.position = q;
     }
     if (best > std::abs(m.height)) m.height = sign * best;
   }

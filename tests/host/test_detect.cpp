@@ -312,6 +312,24 @@ TEST(Detect, AProfilersHeightsReadUpAsOutside) {
     }
 }
 
+TEST(Detect, VerticesSeenPastThePanelDoNotSetADefectsDepth) {
+  // Between a panel's samples the scanner sees what lies behind it (a wall, a rack), and
+  // those vertices fall in the panel's pixels, most on a coarse scan. A defect's depth is
+  // fitted to the vertices under it: a wall's vertex made a "dent" 445 mm deep. Here a
+  // coarse door has unused vertices 0.5 m behind half of its own: they made a false
+  // alarm and cost a defect.
+  sim::scan::ScanOptions o = small_door(4);
+  o.spacing = 0.0011;  // 2.2 mm pixels
+  const ScanRun r = run(o, [](ingest::Mesh& mesh) {
+    const std::vector<Eigen::Vector3f> panel = mesh.vertices;
+    for (std::size_t i = 0; i < panel.size(); i += 2)
+      mesh.vertices.push_back(panel[i] + 0.5f * panel[i].normalized());  // along the sensor's ray
+  });
+  EXPECT_GE(r.eval.matched, 3);  // (the 5 and 6 mm defects are below a 2.2 mm pixel's reach)
+  EXPECT_EQ(r.eval.false_alarms, 0);
+  for (const auto& f : r.det.defects) EXPECT_LT(std::abs(f.defect.height), 0.005);
+}
+
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
   // A scanner whose view is larger than the panel records the wall behind it too. The
   // wall surrounded the panel on the map, a step of half a metre behind it, and showed
