@@ -90,11 +90,9 @@ void order_findings(Detection& out) {
     for (std::size_t j = 0; j < kept.size(); ++j) {
       const auto& dj = kept[j].defect;
       const double apart = (di.position - dj.position).norm();
-      if (di.defect_class == dj.defect_class && apart < 0.5 * std::max(di.diameter, dj.diameter)) {
-        merged_into[i] = static_cast<std::int32_t>(j);
-        break;
-      }
-      if (is_rim_of(di, dj, apart)) {  // i is j's rim: j stays
+      // i is j split in two, or j's rim: j stays.
+      if ((di.defect_class == dj.defect_class && apart < 0.5 * std::max(di.diameter, dj.diameter)) ||
+          is_rim_of(di, dj, apart)) {
         merged_into[i] = static_cast<std::int32_t>(j);
         break;
       }

@@ -54,12 +54,18 @@ View choose_view(const std::vector<Eigen::Vector3f>& pts) {
   return view;
 }
 
+// The median of a non-empty vector (reordered).
+template <typename T>
+T median_in_place(std::vector<T>& v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
 // 3D distances between image neighbours above this are depth jumps, not surface.
 float max_edge_of(std::vector<float>& neighbour_distances) {
   if (neighbour_distances.empty()) return std::numeric_limits<float>::max();
-  const auto mid = neighbour_distances.begin() + static_cast<std::ptrdiff_t>(neighbour_distances.size() / 2);
-  std::nth_element(neighbour_distances.begin(), mid, neighbour_distances.end());
-  return 4.0f * *mid;
+  return 4.0f * median_in_place(neighbour_distances);
 }
 
 // An organised cloud, as a camera writes it: the points in raster order, row after row
@@ -79,12 +85,7 @@ bool mesh_raster_rows(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
     const Eigen::Vector2d d = img[valid[i + 1]] - img[valid[i]];
     dx.push_back(d.x()), dy.push_back(d.y());
   }
-  const auto median = [](std::vector<double>& v) {
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-  };
-  const Eigen::Vector2d step(median(dx), median(dy));
+  const Eigen::Vector2d step(median_in_place(dx), median_in_place(dy));
   if (!(step.norm() > 0.0)) return false;
   const Eigen::Vector2d along = step.normalized();
   // Rows: runs that go forward along it (a gap of missing points goes forward too; the
