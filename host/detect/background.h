@@ -30,4 +30,10 @@ struct Background {
 // origin and axes (w towards the sensor).
 Background find_background(const LinearOctree& tree, const HeightMap& frame, const Box& box);
 
+// The spacing of the samples (ingest::point_spacing) over the triangles off the
+// background only: a wall seen 0.6 m behind a panel holds as many samples as the panel,
+// spaced 1.8 times as wide. 0 when too few triangles are left to tell.
+double panel_spacing(const ingest::MeshView& mesh, const LinearOctree& tree,
+                     const std::vector<std::uint8_t>& background_leaf);
+
 }  // namespace dentmark::detect

@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "background.h"
 #include "border_zone.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
@@ -67,9 +68,11 @@ Finding design_finding(const Candidate& comp, const HeightMap& map, const std::v
   return f;
 }
 
-}  // namespace
-
-Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
+// detect() on samples 'spacing' apart. remeasure: when a background is found, measure
+// the spacing again on the panel alone and start over if it differs.
+Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
+                            bool remeasure) {
+  const auto start = Clock::now();
   Detection out;
   auto t0 = Clock::now();
   auto lap = [&](const char* stage) {
@@ -80,7 +83,7 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
   DetectionStats& st = out.stats;
   st.vertices = input.vertex_count();
   st.triangles = input.triangle_count();
-  st.spacing = ingest::point_spacing(input);
+  st.spacing = spacing;
   const double h = std::max(cfg.finest_node_size, 2.0 * st.spacing);
   st.leaf_size = h;
   // A stray point far off the panel (hundreds of metres) would need an octree deeper than
@@ -136,8 +139,23 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
   lap("features");
 
   // --- Height map and robust reference surface ---
-  out.map = build_height_map(tree, h, cfg.hole_depth);
+  std::vector<std::uint8_t> background_leaf;
+  out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf);
   st.background_area = out.map.background_area;
+  if (remeasure && !background_leaf.empty()) {
+    // The spacing was measured over the background too, and the finest node follows it.
+    const double on_panel = panel_spacing(mesh, tree, background_leaf);
+    if (on_panel > 0.0 && std::abs(std::max(cfg.finest_node_size, 2.0 * on_panel) - h) > 0.1 * h) {
+      background_leaf = {};
+      tree_ptr.reset();
+      out.map = {};
+      const auto first_try = Clock::now() - start;
+      Detection again = detect_at_spacing(input, cfg, on_panel, false);
+      again.timing.insert(again.timing.begin(),
+                          {"spacing", std::chrono::duration<double>(first_try).count()});
+      return again;
+    }
+  }
   lap("map");
   const HeightMap& map = out.map;
   const int rows = map.rows, cols = map.cols;
@@ -267,7 +285,7 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
     const double snr = std::abs(m.peak_deviation) / sigma3;
     d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
     const double min_extent = std::max(cfg.min_diameter, 2.5 * st.spacing);
-    if (!comp.has_deviation && shape.length < min_extent) {
+    if ((!comp.has_deviation && shape.length < min_extent)) {
       d.defect_class = protocol::DefectClass::kNoise;
       f.reason = "isolated spike (outlier)";
     } else if (m.rough_surroundings) {
@@ -297,6 +315,12 @@ Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
   order_findings(out);
   lap("classify");
   return out;
+}
+
+}  // namespace
+
+Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
+  return detect_at_spacing(input, cfg, ingest::point_spacing(input), true);
 }
 
 }  // namespace dentmark::detect

@@ -18,7 +18,8 @@ long HeightMap::pixel_of(double pu, double pv) const {
   return static_cast<long>(r) * cols + static_cast<long>(c);
 }
 
-HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth) {
+HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
+                           std::vector<std::uint8_t>* background_leaf) {
   const auto& leaves = tree.leaves();
   HeightMap map;
   map.pixel = pixel;
@@ -222,6 +223,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
   });
   for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());
+  if (background_leaf) *background_leaf = background.leaf;
   const auto inv_px2 = static_cast<float>(1.0 / (pixel * pixel));
 #pragma omp parallel for schedule(static)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {

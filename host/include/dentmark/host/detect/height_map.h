@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "dentmark/host/detect/linear_octree.h"
@@ -44,6 +45,9 @@ struct HeightMap {
 // frame), to the side the triangles face.
 // A single view sees only the front surface of each column: leaves more than layer_depth
 // behind the column's front go to 'behind' instead of being averaged into the pixel.
-HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth);
+// background_leaf, when given, receives per leaf 1 for background (background.h), or
+// nothing when there is none.
+HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
+                           std::vector<std::uint8_t>* background_leaf = nullptr);
 
 }  // namespace dentmark::detect
