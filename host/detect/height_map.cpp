@@ -11,6 +11,14 @@
 #include "threads.h"
 
 namespace dentmark::detect {
+namespace {
+
+// A leaf whose surface the sensor saw: the area-weighted cosine between its triangles'
+// normals and the ray to the sensor, |S . ray| / A, is at least this (84 degrees off the
+// ray; no scanner measures a surface more nearly edge-on).
+constexpr float kFacingSensor = 0.1f;
+
+}  // namespace
 
 long HeightMap::pixel_of(double pu, double pv) const {
   const double c = std::floor((pu - u0) / pixel), r = std::floor((pv - v0) / pixel);
@@ -213,7 +221,14 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   const Eigen::Vector3f w_axis = axes.row(2).transpose();
   for_leaves_by_band([&](std::size_t band, std::size_t i, std::int32_t k) {
     if (!in_front(i, k)) {
-      behind[band].push_back(q[i]);
+      // Only surface the sensor faced: an outlier vertex behind the skin, meshed to its
+      // neighbours, is a needle of triangles along its ray (a 20 mm spike: |S . ray| / A
+      // ~0.01). Its leaves, traced back along their rays, all went through the one or two
+      // pixels it left empty in the skin: a 1.6 mm "hole".
+      const Eigen::Vector3f ray =
+          map.has_viewpoint ? (map.viewpoint.cast<float>() - q[i]).normalized() : Eigen::Vector3f::UnitZ();
+      if (std::abs(ray.dot(axes * leaves[i].sum_an)) >= kFacingSensor * leaves[i].area)
+        behind[band].push_back(q[i]);
       return;
     }
     // The leaf's area projected on the map plane, |Σ a_i N_i . w|: a sample's footprint
