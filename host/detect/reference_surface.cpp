@@ -133,7 +133,21 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
   // (Tried everywhere: gated to slopes over 0.3, 2 of 501 door defects were lost.)
   if (radius_ >= 2 && q.ok) {
     Quadratic small = solve(window_at(tx, ty, radius_ / 2), tx, ty, half);
-    if (small.ok && whole > 2.0 * half) q = small;
+    if (small.ok && whole > 2.0 * half) {
+      q = small;
+      double quarter = 0.0;
+      // ... and, where the panel is steeper than 45 degrees to the map plane, so may a
+      // quarter window's.
+      const double slope = std::hypot(small.c(1), small.c(2)) * local_scale_;
+      if (radius_ >= 4 && slope > 1.0) {
+        // Mostly full: around a large defect, left out of the refit, a quarter window
+        // holds a sliver of ring, which it fits closely and extrapolates wildly.
+        const Moments win = window_at(tx, ty, radius_ / 4);
+        const double side = (2.0 * (radius_ / 4) + 1.0) * tile_;
+        Quadratic smaller = solve(win, tx, ty, quarter);
+        if (smaller.ok && half > 2.0 * quarter && win.m[0] > 0.6 * side * side) q = smaller;
+      }
+    }
   }
   return q;
 }

@@ -580,6 +580,67 @@ TEST(Detect, ClustersOfOutliersAreNoBumps) {
   EXPECT_EQ(r.eval.matched, r.eval.truth);
 }
 
+TEST(Detect, DefectsOnAFendersSteepSidesAreFound) {
+  // A fender: a cylinder of 0.33 m radius wrapped +-64 degrees (0.74 m of arc) round a
+  // vertical axis, seen 18 degrees off its middle from 0.9 m: one side is 82 degrees off
+  // the map plane's normal, the other 46. Dents and bumps of 16-24 mm sit near the sides.
+  // There a quadratic over even half the 64 mm window left tens of um of residual, which
+  // made design features of the defects (the other generator's SW43: 8 of 11 found). A
+  // quarter window is used where the panel is steeper than 45 degrees to the map and
+  // fits far better.
+  constexpr double R = 0.33, step = 0.0006, tilt = 0.31;
+  struct Planted {
+    double s, t, diameter, height;
+  };
+  const std::vector<Planted> planted = {{-0.30, 0.04, 0.016, 2e-4},
+                                        {-0.29, -0.07, 0.024, -1.5e-4},
+                                        {0.30, 0.05, 0.020, -3e-4},
+                                        {0.29, -0.06, 0.018, 2e-4},
+                                        {0.00, 0.00, 0.020, -1e-4}};
+  const auto point = [&](double s, double t, double offset) {
+    const double a = s / R;  // round the axis
+    // outwards from the axis 0.33 m behind the apex, which is at z = 0
+    const Eigen::Vector3d p((R + offset) * std::sin(a), t, (R + offset) * std::cos(a) - R);
+    const Eigen::Vector3d q(std::cos(tilt) * p.x() + std::sin(tilt) * p.z(), p.y(),
+                            -std::sin(tilt) * p.x() + std::cos(tilt) * p.z());
+    return Eigen::Vector3d(q.x(), q.y(), 0.9 - q.z());  // the sensor at the origin, looking along +z
+  };
+  ingest::Mesh mesh;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 2e-5);
+  const int ns = static_cast<int>(0.74 / step), nt = static_cast<int>(0.3 / step);
+  for (int j = 0; j < nt; ++j)
+    for (int i = 0; i < ns; ++i) {
+      const double s = -0.37 + i * step, t = -0.15 + j * step;
+      double offset = noise(rng);  // outwards: towards the sensor
+      for (const Planted& d : planted) {
+        const double r = std::hypot(s - d.s, t - d.t);
+        if (r < 0.5 * d.diameter)
+          offset += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+      }
+      mesh.vertices.push_back(point(s, t, offset).cast<float>());
+    }
+  for (int j = 0; j + 1 < nt; ++j)
+    for (int i = 0; i + 1 < ns; ++i) {
+      const auto k = [&](int dj, int di) { return static_cast<std::uint32_t>((j + dj) * ns + i + di); };
+      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
+      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
+    }
+  const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
+  std::vector<bool> found(planted.size(), false);
+  for (const auto& f : det.defects) {
+    bool matched = false;
+    for (std::size_t i = 0; i < planted.size(); ++i) {
+      const Planted& d = planted[i];
+      if ((f.defect.position - point(d.s, d.t, 0.0)).norm() > 0.003) continue;
+      matched = found[i] = true;
+      EXPECT_NEAR(f.defect.height, d.height, std::max(1e-5, 0.15 * std::abs(d.height))) << "at s = " << d.s;
+    }
+    EXPECT_TRUE(matched) << "false alarm at " << f.defect.position.transpose();
+  }
+  for (std::size_t i = 0; i < planted.size(); ++i) EXPECT_TRUE(found[i]) << "missed at s = " << planted[i].s;
+}
+
 TEST(Detect, PapersCaseFindsTheTallBumpNotTheHandle) {
   // §V: ~32 000 points of a door, a bump 9 mm wide and 11 mm high, the handle.
   sim::scan::ScanOptions o;
