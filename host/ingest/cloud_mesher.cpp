@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include "delaunay_mesher.h"
+
 namespace dentmark::ingest {
 namespace {
 
@@ -160,13 +162,10 @@ void mesh_point_cloud(Mesh& mesh) {
   std::vector<Eigen::Vector2d> img(pts.size());
   std::vector<std::uint32_t> valid;
   valid.reserve(pts.size());
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::max()), hi = -lo;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     if (!pts[i].allFinite()) continue;
     const Eigen::Vector3d q = view.R * pts[i].cast<double>();
     img[i] = view.perspective ? Eigen::Vector2d(q.x() / q.z(), q.y() / q.z()) : Eigen::Vector2d(q.x(), q.y());
-    lo = lo.cwiseMin(img[i]);
-    hi = hi.cwiseMax(img[i]);
     valid.push_back(static_cast<std::uint32_t>(i));
   }
   if (valid.size() < 3) return;
@@ -174,79 +173,7 @@ void mesh_point_cloud(Mesh& mesh) {
     face_the_view(mesh, view);
     return;
   }
-  const Eigen::Vector2d ext = (hi - lo).cwiseMax(1e-12);
-  // Spacing in the image: first from the bounding box, then corrected by the
-  // fraction of a coarse grid that is occupied (panels have openings and margins).
-  double cell = std::sqrt(ext.x() * ext.y() / static_cast<double>(valid.size()));
-  for (int pass = 0; pass < 2; ++pass) {
-    const double coarse = 4.0 * cell;
-    const auto gw = static_cast<std::size_t>(ext.x() / coarse) + 1,
-               gh = static_cast<std::size_t>(ext.y() / coarse) + 1;
-    if (gw * gh > 64'000'000) break;
-    std::vector<std::uint8_t> occ(gw * gh, 0);
-    for (auto i : valid) {
-      const auto gx = static_cast<std::size_t>((img[i].x() - lo.x()) / coarse);
-      const auto gy = static_cast<std::size_t>((img[i].y() - lo.y()) / coarse);
-      occ[std::min(gy, gh - 1) * gw + std::min(gx, gw - 1)] = 1;
-    }
-    const double frac =
-        static_cast<double>(std::count(occ.begin(), occ.end(), 1)) / static_cast<double>(occ.size());
-    cell = std::sqrt(frac * ext.x() * ext.y() / static_cast<double>(valid.size()));
-  }
-  // One point per grid cell (the one nearest the cell centre); cells slightly
-  // smaller than the spacing so that few points are lost.
-  cell *= 1.0;
-  const auto W = static_cast<std::size_t>(ext.x() / cell) + 2,
-             H = static_cast<std::size_t>(ext.y() / cell) + 2;
-  if (W * H > 400'000'000ull) return;
-  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> grid(W * H, kNone);
-  std::vector<float> best(W * H, std::numeric_limits<float>::max());
-  for (auto i : valid) {
-    const double fx = (img[i].x() - lo.x()) / cell, fy = (img[i].y() - lo.y()) / cell;
-    const auto gx = static_cast<std::size_t>(fx), gy = static_cast<std::size_t>(fy);
-    const auto d = static_cast<float>(
-        std::hypot(fx - static_cast<double>(gx) - 0.5, fy - static_cast<double>(gy) - 0.5));
-    const std::size_t k = gy * W + gx;
-    if (d < best[k]) best[k] = d, grid[k] = i;
-  }
-  // 3D spacing: median nearest-grid-neighbour distance, for the depth-jump test.
-  std::vector<float> edges;
-  for (std::size_t y = 0; y + 1 < H && edges.size() < 200000; y += 3)
-    for (std::size_t x = 0; x + 1 < W; ++x)
-      if (grid[y * W + x] != kNone && grid[y * W + x + 1] != kNone)
-        edges.push_back((pts[grid[y * W + x]] - pts[grid[y * W + x + 1]]).norm());
-  const float max_edge = max_edge_of(edges);
-  auto ok = [&](std::uint32_t a, std::uint32_t b) { return (pts[a] - pts[b]).norm() <= max_edge; };
-  auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    if (ok(a, b) && ok(b, c) && ok(a, c)) mesh.triangles.push_back({a, b, c});
-  };
-  for (std::size_t y = 0; y + 1 < H; ++y) {
-    for (std::size_t x = 0; x + 1 < W; ++x) {
-      const std::uint32_t a = grid[y * W + x], b = grid[y * W + x + 1], c = grid[(y + 1) * W + x],
-                          d = grid[(y + 1) * W + x + 1];
-      const int n = (a != kNone) + (b != kNone) + (c != kNone) + (d != kNone);
-      if (n == 4) {
-        // Split along the shorter diagonal.
-        if ((pts[a] - pts[d]).squaredNorm() <= (pts[b] - pts[c]).squaredNorm()) {
-          add(a, b, d);
-          add(a, d, c);
-        } else {
-          add(a, b, c);
-          add(b, d, c);
-        }
-      } else if (n == 3) {
-        if (a == kNone)
-          add(b, d, c);
-        else if (b == kNone)
-          add(a, d, c);
-        else if (c == kNone)
-          add(a, b, d);
-        else
-          add(a, b, c);
-      }
-    }
-  }
+  mesh_delaunay(mesh, img, valid);
   face_the_view(mesh, view);
 }
 

@@ -3,7 +3,7 @@
 // surface as a height field over its image, so neighbours in the image are neighbours
 // on the surface. An organised cloud (points in the camera's raster order, missing ones
 // left out or NaN) is stitched row to row, every point kept at any density; any other
-// order is meshed on an image grid of the cloud's mean spacing, one point per cell.
+// order by the Delaunay triangulation of the points in the image (delaunay_mesher.h).
 
 #include <Eigen/Core>
 #include <vector>
