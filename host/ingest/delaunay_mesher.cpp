@@ -39,11 +39,33 @@ std::vector<Triangle> strip_triangles(const std::vector<Eigen::Vector2d>& img,
   std::vector<Triangle> out;
   out.reserve(2 * points.size());
   for (auto f = triangulation.finite_faces_begin(); f != triangulation.finite_faces_end(); ++f) {
-    const Triangle t{f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()};
-    const double cx = (img[t[0]].x() + img[t[1]].x() + img[t[2]].x()) / 3.0;
-    if (cx >= lo && cx < hi) out.push_back(t);
+    const double cx =
+        (f->vertex(0)->point().x() + f->vertex(1)->point().x() + f->vertex(2)->point().x()) / 3.0;
+    if (cx >= lo && cx < hi)
+      out.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});
   }
   return out;
+}
+
+// Keeps the triangles with no 3D edge over max_edge and a circumradius of at most
+// max_circumradius.
+void keep_surface(std::vector<Triangle>& faces, const std::vector<Eigen::Vector3f>& pts, float max_edge,
+                  float max_circumradius) {
+  std::erase_if(faces, [&](const Triangle& t) {
+    const float a = (pts[t[0]] - pts[t[1]]).norm(), b = (pts[t[1]] - pts[t[2]]).norm(),
+                c = (pts[t[2]] - pts[t[0]]).norm();
+    if (!(a <= max_edge && b <= max_edge && c <= max_edge)) return true;
+    const float area2 = (pts[t[1]] - pts[t[0]]).cross(pts[t[2]] - pts[t[0]]).norm();  // twice the area
+    return a * b * c > 2.0f * max_circumradius * area2;                               // R = abc / (4 area)
+  });
+}
+
+// Runs job(s) for s in [0, n), one thread each.
+template <typename Job>
+void in_threads(std::size_t n, Job job) {
+  std::vector<std::thread> threads;
+  for (std::size_t s = 0; s < n; ++s) threads.emplace_back(job, s);
+  for (auto& t : threads) t.join();
 }
 
 }  // namespace
@@ -60,43 +82,37 @@ void mesh_delaunay(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
     x.push_back(img[i].x());
     ylo = std::min(ylo, img[i].y()), yhi = std::max(yhi, img[i].y());
   }
-  std::sort(x.begin(), x.end());
-  const double spacing = std::sqrt(std::max(x.back() - x.front(), 1e-12) * std::max(yhi - ylo, 1e-12) /
-                                   static_cast<double>(x.size()));
+  const auto [xlo, xhi] = std::minmax_element(x.begin(), x.end());
+  const double spacing =
+      std::sqrt(std::max(*xhi - *xlo, 1e-12) * std::max(yhi - ylo, 1e-12) / static_cast<double>(x.size()));
   const std::size_t strips =
       valid.size() < 200000 ? 1 : std::clamp<std::size_t>(std::thread::hardware_concurrency(), 1, 8);
   std::vector<double> bound(strips + 1);
-  for (std::size_t s = 1; s < strips; ++s) bound[s] = x[x.size() * s / strips];
-  bound.front() = x.front() - 1.0, bound.back() = x.back() + 1.0;
-  std::vector<std::vector<Triangle>> found(strips);
-  {
-    std::vector<std::thread> threads;
-    for (std::size_t s = 0; s < strips; ++s)
-      threads.emplace_back(
-          [&, s] { found[s] = strip_triangles(img, valid, bound[s], bound[s + 1], 32.0 * spacing); });
-    for (auto& t : threads) t.join();
+  bound.front() = *xlo - 1.0, bound.back() = *xhi + 1.0;
+  for (std::size_t s = 1; s < strips; ++s) {
+    const auto q = x.begin() + static_cast<std::ptrdiff_t>(x.size() * s / strips);
+    std::nth_element(x.begin(), q, x.end());
+    bound[s] = *q;
   }
-  const auto& pts = mesh.vertices;
-  const auto edge = [&](std::uint32_t a, std::uint32_t b) { return (pts[a] - pts[b]).norm(); };
+  std::vector<std::vector<Triangle>> found(strips);
+  in_threads(strips, [&](std::size_t s) {
+    found[s] = strip_triangles(img, valid, bound[s], bound[s + 1], 32.0 * spacing);
+  });
   // The median edge: the spacing, for the depth-jump test.
+  const auto& pts = mesh.vertices;
   std::vector<float> edges;
   for (const auto& faces : found) {
     const std::size_t stride = std::max<std::size_t>(1, faces.size() / 50000);
-    for (std::size_t i = 0; i < faces.size(); i += stride) edges.push_back(edge(faces[i][0], faces[i][1]));
+    for (std::size_t i = 0; i < faces.size(); i += stride)
+      edges.push_back((pts[faces[i][0]] - pts[faces[i][1]]).norm());
   }
   if (edges.empty()) return;
   const auto mid = edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2);
   std::nth_element(edges.begin(), mid, edges.end());
   // Longer edges are depth jumps or openings; a circumradius over 3 median edges is a
   // sliver along the convex hull (a grid's triangles have about 0.7).
-  const float max_edge = 4.0f * *mid, max_circumradius = 3.0f * *mid;
-  for (const auto& faces : found)
-    for (const auto& t : faces) {
-      const float a = edge(t[0], t[1]), b = edge(t[1], t[2]), c = edge(t[2], t[0]);
-      if (!(a <= max_edge && b <= max_edge && c <= max_edge)) continue;
-      const float area2 = (pts[t[1]] - pts[t[0]]).cross(pts[t[2]] - pts[t[0]]).norm();  // twice the area
-      if (a * b * c <= 2.0f * max_circumradius * area2) mesh.triangles.push_back(t);    // R = abc / (4 area)
-    }
+  in_threads(strips, [&](std::size_t s) { keep_surface(found[s], pts, 4.0f * *mid, 3.0f * *mid); });
+  for (const auto& faces : found) mesh.triangles.insert(mesh.triangles.end(), faces.begin(), faces.end());
 }
 
 }  // namespace dentmark::ingest
