@@ -330,6 +330,16 @@ TEST(Detect, VerticesSeenPastThePanelDoNotSetADefectsDepth) {
   for (const auto& f : r.det.defects) EXPECT_LT(std::abs(f.defect.height), 0.005);
 }
 
+// Two triangles per cell of a rows x cols grid of vertices stored row by row.
+void add_grid_triangles(ingest::Mesh& mesh, int rows, int cols) {
+  for (int r = 0; r + 1 < rows; ++r)
+    for (int c = 0; c + 1 < cols; ++c) {
+      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>((r + dr) * cols + c + dc); };
+      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
+      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
+    }
+}
+
 // Adds a wall at depth z (the panel's centre is at 0.9 m; on a slope for a floor), n x n
 // samples 1.5 mm apart with 20 um noise, as a scanner whose view is larger than the panel
 // records it; the panel's shadow on it (its vertices along their rays, as a box) is not
@@ -552,12 +562,7 @@ TEST(Detect, AnOutlierBehindTheSkinIsNoHole) {
       if (u01(rng) < 1e-2) range += 0.002 + 0.018 * u01(rng);
       mesh.vertices.push_back((range * ray).cast<float>());
     }
-  for (int r = 0; r + 1 < n; ++r)
-    for (int c = 0; c + 1 < n; ++c) {
-      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>((r + dr) * n + c + dc); };
-      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
-      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
-    }
+  add_grid_triangles(mesh, n, n);
   const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
   for (const auto& f : det.defects)
     ADD_FAILURE() << report::class_name(f.defect.defect_class) << " " << 1e3 * f.defect.diameter << " mm at "
@@ -620,12 +625,7 @@ TEST(Detect, DefectsOnAFendersSteepSidesAreFound) {
       }
       mesh.vertices.push_back(point(s, t, offset).cast<float>());
     }
-  for (int j = 0; j + 1 < nt; ++j)
-    for (int i = 0; i + 1 < ns; ++i) {
-      const auto k = [&](int dj, int di) { return static_cast<std::uint32_t>((j + dj) * ns + i + di); };
-      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
-      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
-    }
+  add_grid_triangles(mesh, nt, ns);
   const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
   std::vector<bool> found(planted.size(), false);
   for (const auto& f : det.defects) {
