@@ -3,10 +3,9 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <numeric>
 
-#include "median.h"
+#include "dentmark/host/ingest/units.h"
 #include "threads.h"
 
 namespace dentmark::detect {
@@ -208,22 +207,13 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
 double panel_spacing(const ingest::MeshView& mesh, const LinearOctree& tree,
                      const std::vector<std::uint8_t>& background_leaf) {
   const auto& leaves = tree.leaves();
-  const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
-  std::vector<double> e((n + stride - 1) / stride, std::numeric_limits<double>::quiet_NaN());
-#pragma omp parallel for schedule(static)
-  for (std::size_t j = 0; j < e.size(); ++j) {
-    const std::uint64_t key = tree.triangle_key(mesh, j * stride);
+  return ingest::point_spacing(mesh, [&](std::size_t t) {
+    const std::uint64_t key = tree.triangle_key(mesh, t);
     const auto leaf = std::lower_bound(leaves.begin(), leaves.end(), key,
                                        [](const OctreeLeaf& l, std::uint64_t k) { return l.key < k; });
-    if (leaf == leaves.end() || leaf->key != key ||
-        background_leaf[static_cast<std::size_t>(leaf - leaves.begin())])
-      continue;
-    const auto t = mesh.triangle(j * stride);
-    const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
-    e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
-  }
-  std::erase_if(e, [](double x) { return std::isnan(x); });
-  return e.size() >= 100 ? median_of(std::move(e)) : 0.0;
+    return leaf != leaves.end() && leaf->key == key &&
+           !background_leaf[static_cast<std::size_t>(leaf - leaves.begin())];
+  });
 }
 
 }  // namespace dentmark::detect

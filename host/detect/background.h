@@ -32,7 +32,7 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
 
 // The spacing of the samples (ingest::point_spacing) over the triangles off the
 // background only: a wall seen 0.6 m behind a panel holds as many samples as the panel,
-// spaced 1.8 times as wide. 0 when too few triangles are left to tell.
+// spaced 1.8 times as wide. 0 when no sampled triangle is left.
 double panel_spacing(const ingest::MeshView& mesh, const LinearOctree& tree,
                      const std::vector<std::uint8_t>& background_leaf);
 

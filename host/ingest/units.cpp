@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace dentmark::ingest {
@@ -48,15 +49,17 @@ ScaleEvidence measure_scale(const MeshView& mesh) {
   return e;
 }
 
-double point_spacing(const MeshView& mesh) {
+double point_spacing(const MeshView& mesh, const std::function<bool(std::size_t)>& use) {
   const std::size_t n = mesh.triangle_count(), stride = std::max<std::size_t>(1, n / 50000);
-  std::vector<double> e((n + stride - 1) / stride);
+  std::vector<double> e((n + stride - 1) / stride, std::numeric_limits<double>::quiet_NaN());
 #pragma omp parallel for schedule(static)
   for (std::size_t j = 0; j < e.size(); ++j) {
+    if (use && !use(j * stride)) continue;
     const auto t = mesh.triangle(j * stride);
     const Eigen::Vector3f a = mesh.vertex(t[0]), b = mesh.vertex(t[1]), c = mesh.vertex(t[2]);
     e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
   }
+  if (use) std::erase_if(e, [](double x) { return std::isnan(x); });
   return median(e);
 }
 

@@ -3,6 +3,9 @@
 // unit, scanners write metres or millimetres, and a millimetre scan read as metres
 // silently finds nothing (its "spacing" is 0.5 m).
 
+#include <cstddef>
+#include <functional>
+
 #include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
@@ -16,8 +19,9 @@ struct ScaleEvidence {
 ScaleEvidence measure_scale(const MeshView& mesh);
 
 // The scan's point spacing: the median shortest edge of ~50 000 sampled triangles (on
-// grid meshes the other edges are diagonals); 0 without triangles.
-double point_spacing(const MeshView& mesh);
+// grid meshes the other edges are diagonals); 0 without triangles. use(t), when given,
+// picks the sampled triangles t that count.
+double point_spacing(const MeshView& mesh, const std::function<bool(std::size_t)>& use = {});
 
 // Whether a scan read as metres is in millimetres: no body panel is over 20 m across or
 // sampled over 5 cm apart, and no millimetre scan of one is under 20 mm across with
