@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "delaunay_mesher.h"
+#include "median.h"
 
 namespace dentmark::ingest {
 namespace {
@@ -54,14 +55,6 @@ View choose_view(const std::vector<Eigen::Vector3f>& pts) {
   view.R.row(1) = sign * eig.eigenvectors().col(1).transpose();
   view.R.row(2) = sign * eig.eigenvectors().col(0).transpose();
   return view;
-}
-
-// The median of a non-empty vector (reordered).
-template <typename T>
-T median_in_place(std::vector<T>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 // 3D distances between image neighbours above this are depth jumps, not surface.

@@ -11,6 +11,8 @@
 #include <thread>
 #include <utility>
 
+#include "median.h"
+
 namespace dentmark::ingest {
 namespace {
 
@@ -107,11 +109,11 @@ void mesh_delaunay(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
       edges.push_back((pts[faces[i][0]] - pts[faces[i][1]]).norm());
   }
   if (edges.empty()) return;
-  const auto mid = edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2);
-  std::nth_element(edges.begin(), mid, edges.end());
+  const float median_edge = median_in_place(edges);
   // Longer edges are depth jumps or openings; a circumradius over 3 median edges is a
   // sliver along the convex hull (a grid's triangles have about 0.7).
-  in_threads(strips, [&](std::size_t s) { keep_surface(found[s], pts, 4.0f * *mid, 3.0f * *mid); });
+  in_threads(strips,
+             [&](std::size_t s) { keep_surface(found[s], pts, 4.0f * median_edge, 3.0f * median_edge); });
   for (const auto& faces : found) mesh.triangles.insert(mesh.triangles.end(), faces.begin(), faces.end());
 }
 

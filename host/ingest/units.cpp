@@ -5,17 +5,12 @@
 #include <limits>
 #include <vector>
 
+#include "median.h"
+
 namespace dentmark::ingest {
 namespace {
 
 constexpr std::size_t kSamples = 20000;
-
-double median(std::vector<double>& v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 }  // namespace
 
@@ -60,7 +55,7 @@ double point_spacing(const MeshView& mesh, const std::function<bool(std::size_t)
     e[j] = static_cast<double>(std::min({(a - b).norm(), (b - c).norm(), (c - a).norm()}));
   }
   if (use) std::erase_if(e, [](double x) { return std::isnan(x); });
-  return median(e);
+  return median_in_place(e);
 }
 
 bool looks_like_millimetres(const ScaleEvidence& e) {
