@@ -12,6 +12,7 @@
 
 #include "background.h"
 #include "border_zone.h"
+#include "charts.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
@@ -67,6 +68,13 @@ Finding design_finding(const Candidate& comp, const HeightMap& map, const std::v
   d.score = 1.0;
   return f;
 }
+
+Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
+                  std::unique_ptr<const LinearOctree> tree_ptr, const DetectConfig& cfg, Detection out,
+                  bool remeasure, Clock::time_point start, Clock::time_point t0, int facing = 0);
+Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& mesh,
+                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts,
+                         const DetectConfig& cfg, Detection out);
 
 // detect() on samples 'spacing' apart. remeasure: when a background is found, measure
 // the spacing again on the panel alone and start over if it differs.
@@ -128,6 +136,26 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   // (30 k on a door, 19 k groups, 17 k findings, 4 s).
   st.leaf_sigma_threshold = std::max(std::hypot(st.noise_floor_sigma, cfg.feature_angle),
                                      st.noise_floor_sigma + kLeafNoiseTail * st.noise_floor_spread);
+  const Charts charts = find_charts(tree);
+  st.charts = charts.axes.size();
+  if (charts.axes.size() <= 1)
+    return inspect(input, mesh, std::move(tree_ptr), cfg, std::move(out), remeasure, start, t0);
+  return inspect_charts(input, mesh, std::move(tree_ptr), charts, cfg, std::move(out));
+}
+
+// The stages after the octree, on one tree: the whole scan's, or a chart's.
+// remeasure: as detect_at_spacing's; facing: build_height_map's.
+Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
+                  std::unique_ptr<const LinearOctree> tree_ptr, const DetectConfig& cfg, Detection out,
+                  bool remeasure, Clock::time_point start, Clock::time_point t0, int facing) {
+  auto lap = [&](const char* stage) {
+    const auto now = Clock::now();
+    out.timing.emplace_back(stage, std::chrono::duration<double>(now - t0).count());
+    t0 = now;
+  };
+  const LinearOctree& tree = *tree_ptr;
+  DetectionStats& st = out.stats;
+  const double h = st.leaf_size;
   const double leaf_sigma = st.leaf_sigma_threshold;
   // Coarse nodes dilute a small feature's spread by its share of the node's area, so
   // they are split at half the leaf threshold (the paper's single threshold misses
@@ -140,7 +168,7 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
 
   // --- Height map and robust reference surface ---
   std::vector<std::uint8_t> background_leaf;
-  out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf);
+  out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf, facing);
   st.background_area = out.map.background_area;
   if (remeasure && !background_leaf.empty()) {
     // The spacing was measured over the background too, and the finest node follows it.
@@ -321,6 +349,86 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   }
   order_findings(out);
   lap("classify");
+  return out;
+}
+
+// Each chart inspected as a scan of its own; a finding is kept from the chart that owns
+// the surface where it lies, and each chart's map keeps the labels of what it owns. The
+// largest chart's map is the detection's own.
+Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& mesh,
+                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts,
+                         const DetectConfig& cfg, Detection out) {
+  const LinearOctree& tree = *tree_ptr;
+  const std::size_t n = charts.axes.size();
+  std::vector<Detection> parts;
+  for (std::size_t c = 0; c < n; ++c) {
+    Detection part;
+    part.stats = out.stats;
+    auto chart_tree =
+        std::make_unique<const LinearOctree>(tree.subset(charts.members(tree, static_cast<int>(c))));
+    parts.push_back(inspect(input, mesh, std::move(chart_tree), cfg, std::move(part), false, Clock::now(),
+                            Clock::now(), charts.facing));
+  }
+  std::size_t main = 0, most = 0;
+  for (std::size_t c = 0; c < n; ++c) {
+    const auto& w = parts[c].map.weight;
+    const auto pixels =
+        static_cast<std::size_t>(std::count_if(w.begin(), w.end(), [](float x) { return x > 0.0f; }));
+    if (pixels > most) most = pixels, main = c;
+  }
+  // Stages: the scan's so far, then each later stage summed over the charts.
+  for (std::size_t c = 0; c < n; ++c)
+    for (const auto& [stage, seconds] : parts[c].timing) {
+      auto it =
+          std::find_if(out.timing.begin(), out.timing.end(), [&](const auto& t) { return t.first == stage; });
+      if (it == out.timing.end())
+        out.timing.emplace_back(stage, seconds);
+      else
+        it->second += seconds;
+    }
+  out.stats.deviation_noise = parts[main].stats.deviation_noise;
+  out.stats.background_area = parts[main].stats.background_area;
+  out.stats.working_bytes = parts[main].stats.working_bytes;
+  out.stats.feature_leaves = out.stats.feature_groups = 0;
+  // The findings each chart owns, and its labels renumbered into the merged lists (the
+  // main chart first: its findings lead before order_findings sorts them).
+  std::vector<std::size_t> order{main};
+  for (std::size_t c = 0; c < n; ++c)
+    if (c != main) order.push_back(c);
+  for (const std::size_t c : order) {
+    Detection& part = parts[c];
+    out.stats.feature_leaves += part.stats.feature_leaves;
+    out.stats.feature_groups += part.stats.feature_groups;
+    const auto owned = [&](const Finding& f) {
+      return charts.owner(tree, f.defect.position) == static_cast<int>(c);
+    };
+    std::vector<std::int32_t> defect_at, feature_at;  // index in the merged lists, or -1
+    for (Finding& f : part.defects) {
+      defect_at.push_back(owned(f) ? static_cast<std::int32_t>(out.defects.size()) : -1);
+      if (defect_at.back() < 0) continue;
+      f.defect.id = static_cast<std::uint32_t>(out.defects.size());  // order_findings' pre-sort index
+      out.defects.push_back(std::move(f));
+    }
+    for (Finding& f : part.features) {
+      feature_at.push_back(owned(f) ? static_cast<std::int32_t>(out.features.size()) : -1);
+      if (feature_at.back() >= 0) out.features.push_back(std::move(f));
+    }
+    for (auto& l : part.labels)
+      l = l >= 0    ? defect_at[static_cast<std::size_t>(l)]
+          : l <= -2 ? (feature_at[static_cast<std::size_t>(-2 - l)] >= 0
+                           ? -2 - feature_at[static_cast<std::size_t>(-2 - l)]
+                           : -1)
+                    : -1;
+    ChartMap chart{std::move(part.map), std::move(part.deviation), std::move(part.labels)};
+    if (c == main) {
+      out.map = std::move(chart.map);
+      out.deviation = std::move(chart.deviation);
+      out.labels = std::move(chart.labels);
+    } else {
+      out.more_charts.push_back(std::move(chart));
+    }
+  }
+  order_findings(out);
   return out;
 }
 

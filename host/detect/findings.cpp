@@ -70,6 +70,18 @@ bool is_rim_of(const protocol::Defect& rim, const protocol::Defect& core, double
 
 }  // namespace
 
+namespace {
+
+// Every pixel label of the detection's maps.
+template <typename F>
+void for_each_label(Detection& out, F&& f) {
+  for (auto& l : out.labels) f(l);
+  for (auto& chart : out.more_charts)
+    for (auto& l : chart.labels) f(l);
+}
+
+}  // namespace
+
 void order_findings(Detection& out) {
   std::stable_sort(out.defects.begin(), out.defects.end(),
                    [](const Finding& a, const Finding& b) { return a.defect.score > b.defect.score; });
@@ -80,8 +92,9 @@ void order_findings(Detection& out) {
         throw std::logic_error("order_findings: a defect's id is not its index");
       old_to_new[out.defects[i].defect.id] = static_cast<std::int32_t>(i);
     }
-    for (auto& l : out.labels)
+    for_each_label(out, [&](std::int32_t& l) {
       if (l >= 0) l = old_to_new[static_cast<std::size_t>(l)];
+    });
   }
   std::vector<std::int32_t> merged_into(out.defects.size(), -1);
   std::vector<Finding> kept;
@@ -108,8 +121,9 @@ void order_findings(Detection& out) {
     }
   }
   out.defects = std::move(kept);
-  for (auto& l : out.labels)
+  for_each_label(out, [&](std::int32_t& l) {
     if (l >= 0) l = merged_into[static_cast<std::size_t>(l)];
+  });
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
   for (auto& f : out.features) f.defect.id = id++;

@@ -56,6 +56,20 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   return tree;
 }
 
+LinearOctree LinearOctree::subset(const std::vector<std::uint8_t>& keep) const {
+  if (keep.size() != leaves_.size()) throw std::invalid_argument("octree subset: one flag per leaf");
+  LinearOctree tree;
+  tree.origin_ = origin_, tree.leaf_size_ = leaf_size_, tree.depth_ = depth_;
+  const auto kept = static_cast<std::size_t>(
+      std::count_if(keep.begin(), keep.end(), [](std::uint8_t k) { return k != 0; }));
+  tree.leaves_ = OctreeLeaves(kept);
+  OctreeLeaf* out = tree.leaves_.block();
+  for (std::size_t l = 0; l < leaves_.size(); ++l)
+    if (keep[l]) *out++ = leaves_[l];
+  tree.leaves_.set_window(0, kept);
+  return tree;
+}
+
 namespace {
 
 // Eq. (2)-(3) from a node's sums.

@@ -127,7 +127,8 @@ nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& s
                {"feature_groups", s.feature_groups},
                {"deviation_noise", s.deviation_noise},
                {"stray_triangles", s.stray_triangles},
-               {"background_area", s.background_area}};
+               {"background_area", s.background_area},
+               {"charts", s.charts}};
   j["defects"] = nlohmann::json::array();
   for (const auto& f : det.defects) j["defects"].push_back(item(f));
   j["features"] = nlohmann::json::array();

@@ -1,5 +1,6 @@
 // Linear octree: eq. (1)-(3) from sums match the brute-force definitions; subdivision
-// finds what is sharp; grouping (eq. 4, 26-adjacency) splits and drops correctly.
+// finds what is sharp; grouping (eq. 4, 26-adjacency) splits and drops correctly; subsets
+// and the charts of a surface that wraps round.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -10,7 +11,9 @@
 #include <map>
 #include <random>
 
+#include "../../host/detect/charts.h"
 #include "dentmark/host/detect/grouping.h"
+#include "dentmark/host/detect/height_map.h"
 #include "dentmark/host/detect/linear_octree.h"
 
 namespace dentmark::detect {
@@ -302,6 +305,116 @@ TEST(LinearOctree, SubdivisionFindsARidgeAndGroupingSeparatesTwo) {
   EXPECT_EQ(groups.size(), 2u);
   // A very high occupancy floor removes everything (eq. 4 drops sparse nodes).
   EXPECT_TRUE(group_features(tree, feat, 100.0).empty());
+}
+
+TEST(LinearOctree, SubsetKeepsTheChosenLeavesAsTheyWere) {
+  const ingest::Mesh m = grid_mesh(120, 0.0005, [](double x, double y) { return 0.2 * x * y; });
+  const LinearOctree tree = LinearOctree::build(m, 0.001);
+  std::vector<std::uint8_t> keep(tree.leaves().size());
+  for (std::size_t l = 0; l < keep.size(); ++l) keep[l] = l % 3 == 1;
+  const LinearOctree sub = tree.subset(keep);
+  EXPECT_EQ(sub.depth(), tree.depth());
+  EXPECT_EQ(sub.leaf_size(), tree.leaf_size());
+  EXPECT_EQ(sub.origin(), tree.origin());
+  ASSERT_EQ(sub.leaves().size(), (keep.size() + 1) / 3);
+  for (std::size_t i = 0; i < sub.leaves().size(); ++i) {
+    const OctreeLeaf &a = sub.leaves()[i], &b = tree.leaves()[3 * i + 1];
+    EXPECT_EQ(a.key, b.key);
+    EXPECT_EQ(a.count, b.count);
+    EXPECT_EQ(a.area, b.area);
+    EXPECT_EQ(a.sum_an, b.sum_an);
+    EXPECT_EQ(a.centroid, b.centroid);
+  }
+  EXPECT_THROW(tree.subset(std::vector<std::uint8_t>(3, 1)), std::invalid_argument);
+}
+
+// A cylinder of radius R round the y axis, wrapped over +-half_angle, 0.2 m long, as a
+// grid of the given step along the arc; its normals point outwards.
+ingest::Mesh cylinder_mesh(double R, double half_angle, double step) {
+  ingest::Mesh m;
+  const int ns = static_cast<int>(2.0 * half_angle * R / step) + 1, nt = static_cast<int>(0.2 / step) + 1;
+  for (int j = 0; j < nt; ++j)
+    for (int i = 0; i < ns; ++i) {
+      const double a = -half_angle + i * step / R;
+      m.vertices.emplace_back(R * std::sin(a), j * step, R * std::cos(a));
+    }
+  for (int j = 0; j + 1 < nt; ++j)
+    for (int i = 0; i + 1 < ns; ++i) {
+      const auto a = static_cast<std::uint32_t>(j * ns + i), b = a + 1,
+                 c = a + static_cast<std::uint32_t>(ns), d = c + 1;
+      m.triangles.push_back({a, d, b});
+      m.triangles.push_back({a, c, d});
+    }
+  return m;
+}
+
+TEST(Charts, ADoorLikePanelIsOneMap) {
+  // Curved both ways (40 mm of sag over 0.4 m), and a handle: a box 100 x 18 mm standing
+  // 18 mm proud, its sides upright. Neither turns 3 % of the surface past 60 degrees.
+  ingest::Mesh m = grid_mesh(800, 0.0005, [](double x, double y) {
+    const bool handle = std::abs(x - 0.2) < 0.05 && std::abs(y - 0.2) < 0.009;
+    return 0.25 * (x - 0.2) * (x - 0.2) + 0.1 * (y - 0.2) * (y - 0.2) + (handle ? 0.018 : 0.0);
+  });
+  const Charts charts = find_charts(LinearOctree::build(m, 0.001));
+  ASSERT_EQ(charts.axes.size(), 1u);
+}
+
+TEST(Charts, AHalfCylinderIsCoveredByChartsWithinThirtyDegrees) {
+  for (const double half_angle : {1.2, 1.5, 2.0}) {  // 69, 86 and 115 degrees round
+    SCOPED_TRACE(half_angle);
+    const LinearOctree tree = LinearOctree::build(cylinder_mesh(0.25, half_angle, 0.0008), 0.002);
+    const Charts charts = find_charts(tree);
+    ASSERT_GE(charts.axes.size(), 2u);
+    std::vector<std::vector<std::uint8_t>> members;
+    for (std::size_t c = 0; c < charts.axes.size(); ++c)
+      members.push_back(charts.members(tree, static_cast<int>(c)));
+    for (std::size_t l = 0; l < tree.leaves().size(); ++l) {
+      const OctreeLeaf& leaf = tree.leaves()[l];
+      const Eigen::Vector3d normal = leaf.sum_an.cast<double>().normalized();
+      // Each leaf owned by the chart nearest its normal, within 30 degrees (+ the spread
+      // of a 16 mm node round 0.25 m, 4 degrees, and a leaf's own) of its axis, and in
+      // that chart's map.
+      const int owner = charts.owner(tree, leaf.centroid.cast<double>());
+      ASSERT_GE(owner, 0);
+      const auto c = static_cast<std::size_t>(owner);
+      EXPECT_GT(normal.dot(charts.axes[c]), std::cos(0.65)) << "leaf " << l;
+      EXPECT_TRUE(members[c][l]) << "leaf " << l;
+      // A chart's map holds nothing turned more than 55 degrees from its axis (+ spread).
+      for (std::size_t k = 0; k < charts.axes.size(); ++k)
+        if (members[k][l]) {
+          EXPECT_GT(normal.dot(charts.axes[k]), std::cos(1.05)) << "leaf " << l;
+        }
+    }
+  }
+}
+
+TEST(Charts, AChartsMapHasNoGapsAcrossItsSurface) {
+  // A chart's map looks at the cylinder's side 40-45 degrees off the octree's axes, where
+  // the leaves' centroids fall in steps: columns of pixels got none, and read as cuts
+  // through the panel (a dent beside one was taken for a border feature).
+  for (const double turn : {0.0, 0.3, 0.6}) {
+    SCOPED_TRACE(turn);
+    ingest::Mesh m = cylinder_mesh(0.25, 1.5, 0.0005);
+    for (auto& v : m.vertices)  // turned round the cylinder's axis (y)
+      v = Eigen::Vector3f(static_cast<float>(std::cos(turn) * v.x() + std::sin(turn) * v.z()), v.y(),
+                          static_cast<float>(-std::sin(turn) * v.x() + std::cos(turn) * v.z()));
+    const LinearOctree tree = LinearOctree::build(m, 0.001);
+    const Charts charts = find_charts(tree);
+    for (std::size_t c = 0; c < charts.axes.size(); ++c) {
+      const HeightMap map = build_height_map(tree.subset(charts.members(tree, static_cast<int>(c))), 0.001,
+                                             0.003, nullptr, charts.facing);
+      // Along each row, between its first and last surface pixel: no empty pixel.
+      std::size_t gaps = 0;
+      for (int r = map.rows / 4; r < 3 * map.rows / 4; ++r) {
+        const float* w = map.weight.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols);
+        int first = map.cols, last = -1;
+        for (int k = 0; k < map.cols; ++k)
+          if (w[k] > 0.0f) first = std::min(first, k), last = k;
+        for (int k = first; k < last; ++k) gaps += !(w[k] > 0.0f);
+      }
+      EXPECT_EQ(gaps, 0u) << "chart " << c;
+    }
+  }
 }
 
 }  // namespace

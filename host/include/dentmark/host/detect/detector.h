@@ -31,6 +31,7 @@ struct DetectionStats {
   std::size_t working_bytes = 0;    // memory beyond the mesh
   std::size_t stray_triangles = 0;  // left out: reaching stray points far off the panel
   double background_area = 0.0;     // m² of the map taken off: a wall or floor behind the panel
+  std::size_t charts = 1;           // height maps the surface was inspected in (charts.h)
 };
 
 struct Finding {
@@ -39,14 +40,24 @@ struct Finding {
   int pixels = 0;
 };
 
+// A height map as the pictures show it.
+struct ChartMap {
+  HeightMap map;
+  std::vector<float> deviation;      // per pixel, m along the normal (NaN: none)
+  std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
+};
+
 struct Detection {
   std::vector<Finding> defects;   // dent, bump, hole
   std::vector<Finding> features;  // design_feature, noise
   DetectionStats stats;
   std::vector<std::pair<std::string, double>> timing;  // stage, seconds
+  // The scan's height map (a scan inspected in charts: its largest chart's).
   HeightMap map;
   std::vector<float> deviation;      // per pixel, m along the normal (NaN: none)
   std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
+  // The other charts' maps (charts.h), each labelled with the findings it owns.
+  std::vector<ChartMap> more_charts;
 };
 
 Detection detect(const ingest::MeshView& mesh, const DetectConfig& config);

@@ -73,6 +73,8 @@ class LinearOctree {
   static constexpr int kMaxDepth = 16;
 
   const OctreeLeaves& leaves() const { return leaves_; }
+  // The same tree with only the leaves whose keep[] is non-zero (one per leaf).
+  LinearOctree subset(const std::vector<std::uint8_t>& keep) const;
   // Finest-depth key of the leaf holding triangle t (its centroid's cell).
   std::uint64_t triangle_key(const ingest::MeshView& mesh, std::size_t t) const;
   int depth() const { return depth_; }

@@ -1,0 +1,175 @@
+#include "charts.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace dentmark::detect {
+namespace {
+
+// Coarse nodes at least this wide: a dent (≤ 30 mm) or a handle's side does not turn
+// their normal, the panel's curvature does.
+constexpr double kNodeSize = 0.016;
+// A scan needs charts when more than kSteepShare of its surface turns more than kSteep
+// from the mean normal: there a map pixel holds a strip of surface twice its width.
+constexpr double kSteep = 60.0 * std::numbers::pi / 180.0;
+constexpr double kSteepShare = 0.03;
+// Charts are added until all but kUncoveredShare of the surface lies within kCover of an
+// axis; a chart's map takes the surface within kReach of its axis (the margin round it).
+// At 45 degrees of cover (fewer charts) a quadratic reference could not follow a 0.15 m
+// tube's steep sides near its edge; beyond 55 degrees of reach, neither near the chart's.
+constexpr double kCover = 30.0 * std::numbers::pi / 180.0;
+constexpr double kUncoveredShare = 0.005;
+constexpr double kReach = 55.0 * std::numbers::pi / 180.0;
+constexpr int kMaxCharts = 6;
+// A node whose normals cancel out (|S| / A below this: outliers, a crumpled corner) has
+// no direction of its own; it takes its neighbour's along the key order.
+constexpr double kCoherent = 0.3;
+
+struct Node {
+  std::uint64_t key;
+  double area;
+  Eigen::Vector3d normal;  // unit
+};
+
+int nearest_axis(const std::vector<Eigen::Vector3d>& axes, const Eigen::Vector3d& n, double* dot = nullptr) {
+  int best = 0;
+  double best_dot = -2.0;
+  for (std::size_t c = 0; c < axes.size(); ++c)
+    if (const double d = axes[c].dot(n); d > best_dot) best_dot = d, best = static_cast<int>(c);
+  if (dot) *dot = best_dot;
+  return best;
+}
+
+// Coarse nodes of the tree, in key order, with coherent normals.
+std::vector<Node> coarse_nodes(const LinearOctree& tree, int shift) {
+  std::vector<Node> nodes;
+  std::vector<Eigen::Vector3d> sums;
+  for (const OctreeLeaf& l : tree.leaves()) {
+    const std::uint64_t k = l.key >> shift;
+    if (nodes.empty() || nodes.back().key != k)
+      nodes.push_back({k, 0.0, Eigen::Vector3d::Zero()}), sums.emplace_back(0, 0, 0);
+    nodes.back().area += l.area;
+    sums.back() += l.sum_an.cast<double>();
+  }
+  // Incoherent nodes take the previous coherent node's normal (the next one's at the start).
+  std::size_t first_coherent = nodes.size();
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const double s = sums[i].norm();
+    if (nodes[i].area > 0.0 && s >= kCoherent * nodes[i].area) {
+      nodes[i].normal = sums[i] / s;
+      first_coherent = std::min(first_coherent, i);
+    }
+  }
+  if (first_coherent == nodes.size()) return {};
+  Eigen::Vector3d last = nodes[first_coherent].normal;
+  for (Node& n : nodes) {
+    if (n.normal.squaredNorm() > 0.0)
+      last = n.normal;
+    else
+      n.normal = last;
+  }
+  return nodes;
+}
+
+}  // namespace
+
+Charts find_charts(const LinearOctree& tree) {
+  Charts charts;
+  int levels = 0;
+  while (levels < tree.depth() && std::ldexp(tree.leaf_size(), levels) < kNodeSize) ++levels;
+  charts.node_shift = 3 * levels;
+  const std::vector<Node> nodes = coarse_nodes(tree, charts.node_shift);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double total = 0.0;
+  for (const Node& n : nodes) mean += n.area * n.normal, total += n.area;
+  if (nodes.empty() || !(mean.norm() > 0.0)) return charts;
+  charts.axes = {mean.normalized()};
+
+  double steep = 0.0;
+  for (const Node& n : nodes)
+    if (n.normal.dot(charts.axes[0]) < std::cos(kSteep)) steep += n.area;
+  if (steep <= kSteepShare * total) return charts;
+  {
+    // As build_height_map decides for one map: towards the frame origin when it lies more
+    // than 10 cm off the surface's mean plane, else along the normals.
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    double area = 0.0;
+    for (const OctreeLeaf& l : tree.leaves()) centroid += l.area * l.centroid.cast<double>(), area += l.area;
+    const double side = area > 0.0 ? -charts.axes[0].dot(centroid / area) : 0.0;
+    charts.facing = std::abs(side) > 0.1 && side < 0.0 ? -1 : 1;
+  }
+
+  // Spherical k-means (area-weighted), seeded farthest-first: each new axis at the
+  // node turned furthest from its nearest axis, among nodes of a typical size (a stray
+  // point's node must not seed a chart).
+  std::vector<double> areas;
+  for (const Node& n : nodes) areas.push_back(n.area);
+  std::nth_element(areas.begin(), areas.begin() + static_cast<std::ptrdiff_t>(areas.size() / 2), areas.end());
+  const double typical = 0.5 * areas[areas.size() / 2];
+  std::vector<int> assigned(nodes.size(), 0);
+  while (true) {
+    for (int iteration = 0; iteration < 20; ++iteration) {
+      std::vector<Eigen::Vector3d> sum(charts.axes.size(), Eigen::Vector3d::Zero());
+      bool moved = false;
+      for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const int c = nearest_axis(charts.axes, nodes[i].normal);
+        moved |= c != assigned[i];
+        assigned[i] = c;
+        sum[static_cast<std::size_t>(c)] += nodes[i].area * nodes[i].normal;
+      }
+      for (std::size_t c = 0; c < sum.size(); ++c)
+        if (sum[c].norm() > 0.0) charts.axes[c] = sum[c].normalized();
+      if (!moved && iteration > 0) break;
+    }
+    double uncovered = 0.0, worst = 2.0;
+    std::size_t seed = 0;
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      double dot = 0.0;
+      nearest_axis(charts.axes, nodes[i].normal, &dot);
+      if (dot < std::cos(kCover)) uncovered += nodes[i].area;
+      if (nodes[i].area >= typical && dot < worst) worst = dot, seed = i;
+    }
+    if (uncovered <= kUncoveredShare * total || static_cast<int>(charts.axes.size()) == kMaxCharts) break;
+    charts.axes.push_back(nodes[seed].normal);
+  }
+
+  charts.node_keys.reserve(nodes.size());
+  charts.node_chart.reserve(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    charts.node_keys.push_back(nodes[i].key);
+    charts.node_chart.push_back(static_cast<std::uint8_t>(nearest_axis(charts.axes, nodes[i].normal)));
+  }
+  charts.node_normals.reserve(nodes.size());
+  for (const Node& n : nodes) charts.node_normals.push_back(n.normal.cast<float>());
+  return charts;
+}
+
+int Charts::owner(const LinearOctree& tree, const Eigen::Vector3d& p) const {
+  if (node_keys.empty()) return axes.empty() ? -1 : 0;
+  Eigen::Vector3i cell;
+  const int cells = 1 << tree.depth();
+  for (int a = 0; a < 3; ++a)
+    cell[a] = static_cast<int>(std::clamp(std::floor((p[a] - tree.origin()[a]) / tree.leaf_size()), 0.0,
+                                          static_cast<double>(cells - 1)));
+  const std::uint64_t key = LinearOctree::encode(cell) >> node_shift;
+  auto it = std::lower_bound(node_keys.begin(), node_keys.end(), key);
+  if (it == node_keys.end()) --it;
+  return node_chart[static_cast<std::size_t>(it - node_keys.begin())];
+}
+
+std::vector<std::uint8_t> Charts::members(const LinearOctree& tree, int c) const {
+  const auto& leaves = tree.leaves();
+  std::vector<std::uint8_t> in(leaves.size(), 0);
+  const Eigen::Vector3f axis = axes[static_cast<std::size_t>(c)].cast<float>();
+  const auto reach = static_cast<float>(std::cos(kReach));
+  std::size_t node = 0;
+  for (std::size_t l = 0; l < leaves.size(); ++l) {
+    const std::uint64_t k = leaves[l].key >> node_shift;
+    while (node_keys[node] != k) ++node;
+    in[l] = node_chart[node] == c || node_normals[node].dot(axis) >= reach;
+  }
+  return in;
+}
+
+}  // namespace dentmark::detect
