@@ -707,6 +707,18 @@ TEST(Detect, ASideTurnedAwayFromTheSensorKeepsDentsAsDents) {
     const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
     EXPECT_GE(det.stats.charts, 3u);
     scan.expect_found(det);
+    // The pictures: every chart's map, each defect labelled on the one chart that owns it.
+    ASSERT_EQ(det.more_charts.size() + 1, det.stats.charts);
+    std::vector<int> charts_labelling(det.defects.size(), 0);
+    const auto count = [&](const std::vector<std::int32_t>& labels) {
+      std::vector<bool> seen(det.defects.size(), false);
+      for (const std::int32_t l : labels)
+        if (l >= 0) seen[static_cast<std::size_t>(l)] = true;
+      for (std::size_t k = 0; k < seen.size(); ++k) charts_labelling[k] += seen[k];
+    };
+    count(det.labels);
+    for (const auto& chart : det.more_charts) count(chart.labels);
+    for (std::size_t k = 0; k < det.defects.size(); ++k) EXPECT_EQ(charts_labelling[k], 1) << "defect " << k;
   }
 }
 
