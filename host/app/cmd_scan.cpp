@@ -100,7 +100,7 @@ int run_detect(const DetectArgs& a) {
     log::info(a.scan + ": " + std::to_string(static_cast<int>(std::lround(det.stats.background_area * 1e4))) +
               " cm² of background (a surface far behind the panel) left out");
   if (det.stats.charts > 1)
-    log::info(a.scan + ": the surface wraps round (over 60° from its mean normal): inspected in " +
+    log::info(a.scan + ": the surface wraps round (over 45° from its mean normal): inspected in " +
               std::to_string(det.stats.charts) + " charts (the report shows each)");
   det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
   const auto t_detect = Clock::now();

@@ -11,8 +11,10 @@ namespace {
 // their normal, the panel's curvature does.
 constexpr double kNodeSize = 0.016;
 // A scan needs charts when more than kSteepShare of its surface turns more than kSteep
-// from the mean normal: there a map pixel holds a strip of surface twice its width.
-constexpr double kSteep = 60.0 * std::numbers::pi / 180.0;
+// from the mean normal. Past 60 degrees a map pixel holds a strip of surface twice its
+// width; at 55 degrees on a 0.2 m radius the reference's quadratic already left 30-140 um
+// dents and bumps that were not there (the other generator's tight fenders).
+constexpr double kSteep = 45.0 * std::numbers::pi / 180.0;
 constexpr double kSteepShare = 0.03;
 // Charts are added until all but kUncoveredShare of the surface lies within kCover of an
 // axis; a chart's map takes the surface within kReach of its axis (the margin round it).
@@ -22,14 +24,19 @@ constexpr double kCover = 30.0 * std::numbers::pi / 180.0;
 constexpr double kUncoveredShare = 0.005;
 constexpr double kReach = 55.0 * std::numbers::pi / 180.0;
 constexpr int kMaxCharts = 6;
+constexpr double kMinChartShare = 0.01;  // of the surface, for a chart of its own
 // A node whose normals cancel out (|S| / A below this: outliers, a crumpled corner) has
 // no direction of its own; it takes its neighbour's along the key order.
 constexpr double kCoherent = 0.3;
+// A node of smooth panel: the spread of its normals (eq. 3's σ) at most that of the scan's
+// noise and kSmoothSpread more (sigma² adds up): 15 degrees.
+constexpr double kSmoothSpread = 0.26;
 
 struct Node {
   std::uint64_t key;
   double area;
   Eigen::Vector3d normal;  // unit
+  double coherence = 0.0;  // |S| / A: 1 on a smooth panel, less across a handle's edge
 };
 
 int nearest_axis(const std::vector<Eigen::Vector3d>& axes, const Eigen::Vector3d& n, double* dot = nullptr) {
@@ -56,6 +63,7 @@ std::vector<Node> coarse_nodes(const LinearOctree& tree, int shift) {
   std::size_t first_coherent = nodes.size();
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const double s = sums[i].norm();
+    nodes[i].coherence = nodes[i].area > 0.0 ? s / nodes[i].area : 0.0;
     if (nodes[i].area > 0.0 && s >= kCoherent * nodes[i].area) {
       nodes[i].normal = sums[i] / s;
       first_coherent = std::min(first_coherent, i);
@@ -74,8 +82,10 @@ std::vector<Node> coarse_nodes(const LinearOctree& tree, int shift) {
 
 }  // namespace
 
-Charts find_charts(const LinearOctree& tree) {
+Charts find_charts(const LinearOctree& tree, double noise_sigma) {
   Charts charts;
+  const double smooth =
+      std::sqrt(std::max(0.0, 1.0 - noise_sigma * noise_sigma - kSmoothSpread * kSmoothSpread));
   int levels = 0;
   while (levels < tree.depth() && std::ldexp(tree.leaf_size(), levels) < kNodeSize) ++levels;
   charts.node_shift = 3 * levels;
@@ -86,9 +96,11 @@ Charts find_charts(const LinearOctree& tree) {
   if (nodes.empty() || !(mean.norm() > 0.0)) return charts;
   charts.axes = {mean.normalized()};
 
+  // Steep panel, not a handle's or a flange's wall: that takes a node whose normals agree
+  // (a 16 mm node across the edge of a handle standing 18 mm proud does not).
   double steep = 0.0;
   for (const Node& n : nodes)
-    if (n.normal.dot(charts.axes[0]) < std::cos(kSteep)) steep += n.area;
+    if (n.coherence >= smooth && n.normal.dot(charts.axes[0]) < std::cos(kSteep)) steep += n.area;
   if (steep <= kSteepShare * total) return charts;
   {
     // As build_height_map decides for one map: towards the frame origin when it lies more
@@ -128,10 +140,28 @@ Charts find_charts(const LinearOctree& tree) {
       double dot = 0.0;
       nearest_axis(charts.axes, nodes[i].normal, &dot);
       if (dot < std::cos(kCover)) uncovered += nodes[i].area;
-      if (nodes[i].area >= typical && dot < worst) worst = dot, seed = i;
+      if (nodes[i].area >= typical && nodes[i].coherence >= smooth && dot < worst) worst = dot, seed = i;
     }
-    if (uncovered <= kUncoveredShare * total || static_cast<int>(charts.axes.size()) == kMaxCharts) break;
+    if (uncovered <= kUncoveredShare * total || static_cast<int>(charts.axes.size()) == kMaxCharts ||
+        worst > 1.0)  // (no smooth node of a typical size left to seed a chart)
+      break;
     charts.axes.push_back(nodes[seed].normal);
+  }
+  // A chart of next to nothing (a stray point's cluster, a sliver between two axes) is no
+  // map: its nodes go to the nearest other axis.
+  {
+    std::vector<double> owned(charts.axes.size(), 0.0);
+    for (const Node& n : nodes)
+      owned[static_cast<std::size_t>(nearest_axis(charts.axes, n.normal))] += n.area;
+    std::vector<Eigen::Vector3d> kept;
+    for (std::size_t c = 0; c < charts.axes.size(); ++c)
+      if (owned[c] >= kMinChartShare * total) kept.push_back(charts.axes[c]);
+    if (kept.empty()) kept.push_back(charts.axes[0]);
+    charts.axes = std::move(kept);
+  }
+  if (charts.axes.size() == 1) {
+    charts.axes = {mean.normalized()};
+    return charts;
   }
 
   charts.node_keys.reserve(nodes.size());

@@ -35,9 +35,11 @@ struct Charts {
   std::vector<std::uint8_t> members(const LinearOctree& tree, int c) const;
 };
 
-// The charts for the tree's surface: one axis when less than 3 % of the surface turns
-// more than 60° from the mean normal (a door, a hood: today's single map), else up to 6
-// axes found by area-weighted spherical k-means over coarse nodes' normals.
-Charts find_charts(const LinearOctree& tree);
+// The charts for the tree's surface: one axis when less than 3 % of the surface (smooth
+// panel, not a handle's walls) turns more than 45° from the mean normal (a door, a hood:
+// one map), else up to 6 axes found by area-weighted spherical k-means over coarse
+// nodes' normals. noise_sigma: the leaves' normal spread from noise alone (eq. 3's σ, the
+// scan's noise floor).
+Charts find_charts(const LinearOctree& tree, double noise_sigma);
 
 }  // namespace dentmark::detect

@@ -71,10 +71,34 @@ Finding design_finding(const Candidate& comp, const HeightMap& map, const std::v
 
 Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
                   std::unique_ptr<const LinearOctree> tree_ptr, const DetectConfig& cfg, Detection out,
-                  bool remeasure, Clock::time_point start, Clock::time_point t0, int facing = 0);
+                  bool remeasure, Clock::time_point start, Clock::time_point t0,
+                  const Eigen::Vector3d& chart_w = Eigen::Vector3d::Zero());
 Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& mesh,
                          std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts,
                          const DetectConfig& cfg, Detection out);
+
+// With a background found, the spacing was measured over it too, and the finest node
+// follows the spacing: the panel's own spacing if its finest node differs by more than
+// 10 % from h, else 0.
+double panel_spacing_if_other(const ingest::MeshView& mesh, const LinearOctree& tree,
+                              const std::vector<std::uint8_t>& background_leaf, const DetectConfig& cfg,
+                              double h) {
+  const double on_panel = panel_spacing(mesh, tree, background_leaf);
+  return on_panel > 0.0 && std::abs(std::max(cfg.finest_node_size, 2.0 * on_panel) - h) > 0.1 * h ? on_panel
+                                                                                                  : 0.0;
+}
+
+Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
+                            bool remeasure);
+
+// detect_at_spacing once more at the panel's spacing; the first try shows as "spacing".
+Detection start_over(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
+                     Clock::time_point start) {
+  const auto first_try = Clock::now() - start;
+  Detection again = detect_at_spacing(input, cfg, spacing, false);
+  again.timing.insert(again.timing.begin(), {"spacing", std::chrono::duration<double>(first_try).count()});
+  return again;
+}
 
 // detect() on samples 'spacing' apart. remeasure: when a background is found, measure
 // the spacing again on the panel alone and start over if it differs.
@@ -136,18 +160,30 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   // (30 k on a door, 19 k groups, 17 k findings, 4 s).
   st.leaf_sigma_threshold = std::max(std::hypot(st.noise_floor_sigma, cfg.feature_angle),
                                      st.noise_floor_sigma + kLeafNoiseTail * st.noise_floor_spread);
-  const Charts charts = find_charts(tree);
-  st.charts = charts.axes.size();
+  const Charts charts = find_charts(tree, st.noise_floor_sigma);
+  st.charts = std::max<std::size_t>(1, charts.axes.size());
   if (charts.axes.size() <= 1)
     return inspect(input, mesh, std::move(tree_ptr), cfg, std::move(out), remeasure, start, t0);
+  if (remeasure) {
+    // The whole scan's map, for its background alone: the charts' maps each see a part.
+    std::vector<std::uint8_t> background_leaf;
+    build_height_map(tree, h, cfg.hole_depth, &background_leaf);
+    if (!background_leaf.empty())
+      if (const double on_panel = panel_spacing_if_other(mesh, tree, background_leaf, cfg, h);
+          on_panel > 0.0) {
+        tree_ptr.reset();
+        return start_over(input, cfg, on_panel, start);
+      }
+  }
   return inspect_charts(input, mesh, std::move(tree_ptr), charts, cfg, std::move(out));
 }
 
 // The stages after the octree, on one tree: the whole scan's, or a chart's.
-// remeasure: as detect_at_spacing's; facing: build_height_map's.
+// remeasure: as detect_at_spacing's; chart_w: build_height_map's.
 Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
                   std::unique_ptr<const LinearOctree> tree_ptr, const DetectConfig& cfg, Detection out,
-                  bool remeasure, Clock::time_point start, Clock::time_point t0, int facing) {
+                  bool remeasure, Clock::time_point start, Clock::time_point t0,
+                  const Eigen::Vector3d& chart_w) {
   auto lap = [&](const char* stage) {
     const auto now = Clock::now();
     out.timing.emplace_back(stage, std::chrono::duration<double>(now - t0).count());
@@ -168,20 +204,14 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
 
   // --- Height map and robust reference surface ---
   std::vector<std::uint8_t> background_leaf;
-  out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf, facing);
+  out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf, chart_w);
   st.background_area = out.map.background_area;
   if (remeasure && !background_leaf.empty()) {
-    // The spacing was measured over the background too, and the finest node follows it.
-    const double on_panel = panel_spacing(mesh, tree, background_leaf);
-    if (on_panel > 0.0 && std::abs(std::max(cfg.finest_node_size, 2.0 * on_panel) - h) > 0.1 * h) {
+    if (const double on_panel = panel_spacing_if_other(mesh, tree, background_leaf, cfg, h); on_panel > 0.0) {
       background_leaf = {};
       tree_ptr.reset();
       out.map = {};
-      const auto first_try = Clock::now() - start;
-      Detection again = detect_at_spacing(input, cfg, on_panel, false);
-      again.timing.insert(again.timing.begin(),
-                          {"spacing", std::chrono::duration<double>(first_try).count()});
-      return again;
+      return start_over(input, cfg, on_panel, start);
     }
   }
   lap("map");
@@ -367,7 +397,7 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
     auto chart_tree =
         std::make_unique<const LinearOctree>(tree.subset(charts.members(tree, static_cast<int>(c))));
     parts.push_back(inspect(input, mesh, std::move(chart_tree), cfg, std::move(part), false, Clock::now(),
-                            Clock::now(), charts.facing));
+                            Clock::now(), charts.facing * charts.axes[c]));
   }
   std::size_t main = 0, most = 0;
   for (std::size_t c = 0; c < n; ++c) {

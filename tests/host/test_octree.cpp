@@ -355,7 +355,7 @@ TEST(Charts, ADoorLikePanelIsOneMap) {
     const bool handle = std::abs(x - 0.2) < 0.05 && std::abs(y - 0.2) < 0.009;
     return 0.25 * (x - 0.2) * (x - 0.2) + 0.1 * (y - 0.2) * (y - 0.2) + (handle ? 0.018 : 0.0);
   });
-  const Charts charts = find_charts(LinearOctree::build(m, 0.001));
+  const Charts charts = find_charts(LinearOctree::build(m, 0.001), 0.0);
   ASSERT_EQ(charts.axes.size(), 1u);
 }
 
@@ -363,7 +363,7 @@ TEST(Charts, AHalfCylinderIsCoveredByChartsWithinThirtyDegrees) {
   for (const double half_angle : {1.2, 1.5, 2.0}) {  // 69, 86 and 115 degrees round
     SCOPED_TRACE(half_angle);
     const LinearOctree tree = LinearOctree::build(cylinder_mesh(0.25, half_angle, 0.0008), 0.002);
-    const Charts charts = find_charts(tree);
+    const Charts charts = find_charts(tree, 0.0);
     ASSERT_GE(charts.axes.size(), 2u);
     std::vector<std::vector<std::uint8_t>> members;
     for (std::size_t c = 0; c < charts.axes.size(); ++c)
@@ -399,10 +399,10 @@ TEST(Charts, AChartsMapHasNoGapsAcrossItsSurface) {
       v = Eigen::Vector3f(static_cast<float>(std::cos(turn) * v.x() + std::sin(turn) * v.z()), v.y(),
                           static_cast<float>(-std::sin(turn) * v.x() + std::cos(turn) * v.z()));
     const LinearOctree tree = LinearOctree::build(m, 0.001);
-    const Charts charts = find_charts(tree);
+    const Charts charts = find_charts(tree, 0.0);
     for (std::size_t c = 0; c < charts.axes.size(); ++c) {
       const HeightMap map = build_height_map(tree.subset(charts.members(tree, static_cast<int>(c))), 0.001,
-                                             0.003, nullptr, charts.facing);
+                                             0.003, nullptr, charts.facing * charts.axes[c]);
       // Along each row, between its first and last surface pixel: no empty pixel.
       std::size_t gaps = 0;
       for (int r = map.rows / 4; r < 3 * map.rows / 4; ++r) {

@@ -47,11 +47,12 @@ struct HeightMap {
 // behind the column's front go to 'behind' instead of being averaged into the pixel.
 // background_leaf, when given, receives per leaf 1 for background (background.h), or
 // nothing when there is none.
-// facing: 0 as above. +1 or -1: the map is a chart's (charts.h), w along or against the
-// triangles' mean normal as the whole scan's map would look; and as a chart lies at up to
-// 55° to the octree's grid, single pixels the grid's steps left empty between surface
-// pixels are filled from their neighbours.
+// chart_w: zero for the whole scan's map. Else the map is a chart's (charts.h): w on
+// chart_w's side (the chart's axis, turned as the whole scan's map would look); and as a
+// chart lies at up to 55° to the octree's grid, single pixels the grid's steps left empty
+// between surface pixels are filled from their neighbours.
 HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
-                           std::vector<std::uint8_t>* background_leaf = nullptr, int facing = 0);
+                           std::vector<std::uint8_t>* background_leaf = nullptr,
+                           const Eigen::Vector3d& chart_w = Eigen::Vector3d::Zero());
 
 }  // namespace dentmark::detect
