@@ -153,7 +153,8 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
   if (ec) throw ReportError(path + ": cannot rename: " + ec.message());
 }
 
-void write_marked_ply(const std::string& path, const ingest::MeshView& mesh, const detect::Detection& det) {
+std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::MeshView& mesh,
+                                                               const detect::Detection& det) {
   const std::vector<Panel> panels = panels_of(det);
   std::vector<std::array<std::uint8_t, 3>> colours(mesh.vertex_count(), {190, 190, 190});
   for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
@@ -183,6 +184,11 @@ void write_marked_ply(const std::string& path, const ingest::MeshView& mesh, con
     }
     for (auto v : t) colours[v] = col;
   }
+  return colours;
+}
+
+void write_marked_ply(const std::string& path, const ingest::MeshView& mesh, const detect::Detection& det) {
+  const auto colours = marked_vertex_colours(mesh, det);
   try {
     ingest::write_ply(path, mesh, colours);
   } catch (const ingest::IngestError& e) {

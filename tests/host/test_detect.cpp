@@ -13,6 +13,7 @@
 #include "dentmark/host/ingest/cloud_mesher.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
+#include "dentmark/host/report/pictures.h"
 #include "dentmark/host/report/scan_truth.h"
 #include "dentmark/sim/scan/sls_scan.h"
 
@@ -756,6 +757,18 @@ TEST(Detect, ASideTurnedAwayFromTheSensorKeepsDentsAsDents) {
     count(det.labels);
     for (const auto& chart : det.more_charts) count(chart.labels);
     for (std::size_t k = 0; k < det.defects.size(); ++k) EXPECT_EQ(charts_labelling[k], 1) << "defect " << k;
+    // The marked PLY: each planted defect's centre coloured as its class, wherever it lies.
+    const auto colours = report::marked_vertex_colours(mesh, det);
+    for (const Planted& d : planted) {
+      const Eigen::Vector3f centre = scan.point(d.s, d.t, d.height).cast<float>();
+      std::size_t nearest = 0;
+      for (std::size_t v = 0; v < mesh.vertices.size(); ++v)
+        if ((mesh.vertices[v] - centre).squaredNorm() < (mesh.vertices[nearest] - centre).squaredNorm())
+          nearest = v;
+      const std::array<std::uint8_t, 3> expected =
+          d.height < 0 ? std::array<std::uint8_t, 3>{220, 30, 30} : std::array<std::uint8_t, 3>{30, 60, 230};
+      EXPECT_EQ(colours[nearest], expected) << "defect at s = " << d.s;
+    }
   }
 }
 

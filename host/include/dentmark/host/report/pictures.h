@@ -3,7 +3,10 @@
 // each defect ringed and labelled and a legend in mm (PNG), and the mesh with defect
 // triangles coloured (PLY, for MeshLab or CloudCompare).
 
+#include <array>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/ingest/mesh.h"
@@ -14,5 +17,9 @@ namespace dentmark::report {
 void write_report_png(const std::string& path, const detect::Detection& detection);
 void write_marked_ply(const std::string& path, const ingest::MeshView& mesh,
                       const detect::Detection& detection);
+// The marked PLY's colour per vertex: red on a dent's triangles, blue on a bump's, yellow
+// on a design feature's, grey elsewhere (through every chart's map, charts.h).
+std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::MeshView& mesh,
+                                                               const detect::Detection& detection);
 
 }  // namespace dentmark::report
