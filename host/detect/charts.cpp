@@ -102,15 +102,6 @@ Charts find_charts(const LinearOctree& tree, double noise_sigma) {
   for (const Node& n : nodes)
     if (n.coherence >= smooth && n.normal.dot(charts.axes[0]) < std::cos(kSteep)) steep += n.area;
   if (steep <= kSteepShare * total) return charts;
-  {
-    // As build_height_map decides for one map: towards the frame origin when it lies more
-    // than 10 cm off the surface's mean plane, else along the normals.
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    double area = 0.0;
-    for (const OctreeLeaf& l : tree.leaves()) centroid += l.area * l.centroid.cast<double>(), area += l.area;
-    const double side = area > 0.0 ? -charts.axes[0].dot(centroid / area) : 0.0;
-    charts.facing = std::abs(side) > 0.1 && side < 0.0 ? -1 : 1;
-  }
 
   // Spherical k-means (area-weighted), seeded farthest-first: each new axis at the
   // node turned furthest from its nearest axis, among nodes of a typical size (a stray

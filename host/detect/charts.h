@@ -17,10 +17,6 @@ namespace dentmark::detect {
 
 struct Charts {
   std::vector<Eigen::Vector3d> axes;  // unit, scan frame; one axis: no charts needed
-  // Whether the whole scan's map would look along (+1) or against (-1) the triangles'
-  // normals (towards a sensor at the frame origin): every chart's map looks the same way,
-  // so a dent is a dent on a side that turns away from the sensor too.
-  int facing = 1;
   // Coarse nodes (key at the finest depth >> node_shift) in key order, with the chart
   // each belongs to.
   int node_shift = 0;

@@ -74,7 +74,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
                   bool remeasure, Clock::time_point start, Clock::time_point t0,
                   const Eigen::Vector3d& chart_w = Eigen::Vector3d::Zero());
 Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& mesh,
-                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts,
+                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts, int facing,
                          const DetectConfig& cfg, Detection out);
 
 // With a background found, the spacing was measured over it too, and the finest node
@@ -164,18 +164,24 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   st.charts = std::max<std::size_t>(1, charts.axes.size());
   if (charts.axes.size() <= 1)
     return inspect(input, mesh, std::move(tree_ptr), cfg, std::move(out), remeasure, start, t0);
-  if (remeasure) {
-    // The whole scan's map, for its background alone: the charts' maps each see a part.
+  // The whole scan's map: its background (each chart's map sees only part of it), and
+  // the way it looks, along or against the triangles' normals (towards the sensor), which
+  // every chart's map takes: a dent on a side turned away from the sensor stays a dent.
+  int facing = 1;
+  {
     std::vector<std::uint8_t> background_leaf;
-    build_height_map(tree, h, cfg.hole_depth, &background_leaf);
-    if (!background_leaf.empty())
+    const HeightMap whole = build_height_map(tree, h, cfg.hole_depth, &background_leaf);
+    if (remeasure && !background_leaf.empty())
       if (const double on_panel = panel_spacing_if_other(mesh, tree, background_leaf, cfg, h);
           on_panel > 0.0) {
         tree_ptr.reset();
         return start_over(input, cfg, on_panel, start);
       }
+    Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();
+    for (const OctreeLeaf& l : tree.leaves()) sum_an += l.sum_an.cast<double>();
+    if (whole.axes.row(2).dot(sum_an) < 0.0) facing = -1;
   }
-  return inspect_charts(input, mesh, std::move(tree_ptr), charts, cfg, std::move(out));
+  return inspect_charts(input, mesh, std::move(tree_ptr), charts, facing, cfg, std::move(out));
 }
 
 // The stages after the octree, on one tree: the whole scan's, or a chart's.
@@ -382,11 +388,12 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   return out;
 }
 
-// Each chart inspected as a scan of its own; a finding is kept from the chart that owns
-// the surface where it lies, and each chart's map keeps the labels of what it owns. The
-// largest chart's map is the detection's own.
+// Each chart inspected as a scan of its own, its map looking along (facing +1) or
+// against (-1) the triangles' normals as the whole scan's does; a finding is kept from
+// the chart that owns the surface where it lies, and each chart's map keeps the labels
+// of what it owns. The largest chart's map is the detection's own.
 Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& mesh,
-                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts,
+                         std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts, int facing,
                          const DetectConfig& cfg, Detection out) {
   const LinearOctree& tree = *tree_ptr;
   const std::size_t n = charts.axes.size();
@@ -397,7 +404,7 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
     auto chart_tree =
         std::make_unique<const LinearOctree>(tree.subset(charts.members(tree, static_cast<int>(c))));
     parts.push_back(inspect(input, mesh, std::move(chart_tree), cfg, std::move(part), false, Clock::now(),
-                            Clock::now(), charts.facing * charts.axes[c]));
+                            Clock::now(), facing * charts.axes[c]));
   }
   std::size_t main = 0, most = 0;
   for (std::size_t c = 0; c < n; ++c) {

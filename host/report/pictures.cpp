@@ -1,5 +1,6 @@
 #include "dentmark/host/report/pictures.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -89,16 +90,10 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
         if (l >= 0) defect_here[p][static_cast<std::size_t>(l)] = true;
         if (l <= -2) feature_here[p][static_cast<std::size_t>(-2 - l)] = true;
       }
-  for (std::size_t k = 0; k < det.defects.size(); ++k) {
-    bool anywhere = false;
-    for (const auto& here : defect_here) anywhere = anywhere || here[k];
-    if (!anywhere) defect_here[0][k] = true;
-  }
-  for (std::size_t k = 0; k < det.features.size(); ++k) {
-    bool anywhere = false;
-    for (const auto& here : feature_here) anywhere = anywhere || here[k];
-    if (!anywhere) feature_here[0][k] = true;
-  }
+  for (auto* here : {&defect_here, &feature_here})
+    for (std::size_t k = 0; k < (*here)[0].size(); ++k)
+      if (std::none_of(here->begin(), here->end(), [&](const std::vector<bool>& panel) { return panel[k]; }))
+        (*here)[0][k] = true;
   // Colour range: the larger of 0.1 mm and 8x the measured deviation noise.
   const double range = std::max(1e-4, 8.0 * det.stats.deviation_noise);
   std::vector<cv::Mat> pictures;

@@ -726,7 +726,7 @@ TEST(Detect, AWrappedPanelsSpacingIsItsOwnWithAWallBehind) {
 TEST(Detect, ASideTurnedAwayFromTheSensorKeepsDentsAsDents) {
   // 260 degrees of a 0.15 m radius tube, as merged views give it: the charts past 90
   // degrees face away from the frame origin. Their maps look the way the whole scan's
-  // would, along or against the normals (charts.h: facing), or their dents would read as
+  // would, along or against the normals (detector.cpp), or their dents would read as
   // bumps.
   const double R = 0.15;
   std::vector<Planted> planted;

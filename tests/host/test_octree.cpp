@@ -402,7 +402,7 @@ TEST(Charts, AChartsMapHasNoGapsAcrossItsSurface) {
     const Charts charts = find_charts(tree, 0.0);
     for (std::size_t c = 0; c < charts.axes.size(); ++c) {
       const HeightMap map = build_height_map(tree.subset(charts.members(tree, static_cast<int>(c))), 0.001,
-                                             0.003, nullptr, charts.facing * charts.axes[c]);
+                                             0.003, nullptr, charts.axes[c]);
       // Along each row, between its first and last surface pixel: no empty pixel.
       std::size_t gaps = 0;
       for (int r = map.rows / 4; r < 3 * map.rows / 4; ++r) {
