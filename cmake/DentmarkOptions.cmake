@@ -22,3 +22,11 @@ if(CMAKE_CROSSCOMPILING)
   target_compile_options(dentmark_options INTERFACE ${_board_flags})
   message(STATUS "dentmark: board ${DENTMARK_BOARD}, CPU flags '${DENTMARK_BOARD_CPU_FLAGS}'")
 endif()
+
+# Line tables only: CI machines may have little disk (a full-debug host tree is 1.8 GB).
+# A directory option, so it follows CMAKE_CXX_FLAGS_<CONFIG>'s -g on every command line.
+if(DENTMARK_DEBUG_INFO STREQUAL "lines")
+  add_compile_options(-g1)
+elseif(NOT DENTMARK_DEBUG_INFO STREQUAL "full")
+  message(FATAL_ERROR "DENTMARK_DEBUG_INFO=${DENTMARK_DEBUG_INFO}: expected full or lines")
+endif()
