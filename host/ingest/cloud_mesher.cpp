@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "delaunay_mesher.h"
+#include "fold_mesher.h"
 #include "median.h"
 
 namespace dentmark::ingest {
@@ -166,6 +167,10 @@ void mesh_point_cloud(Mesh& mesh) {
     face_the_view(mesh, view);
     return;
   }
+  // Merged views that wrap round: charts, facing the way the side nearest the view does.
+  mesh.cloud_charts =
+      mesh_folded_cloud(mesh, valid, ViewDirection{view.perspective, view.R.row(2).transpose()});
+  if (mesh.cloud_charts > 0) return;
   mesh_delaunay(mesh, img, valid);
   face_the_view(mesh, view);
 }

@@ -138,6 +138,7 @@ Scan open_scan(const std::string& path, const ReadOptions& options) {
   scan.dropped_faces = mesh->dropped_faces;
   scan.nonfinite_vertices = mesh->nonfinite_vertices;
   scan.from_point_cloud = mesh->from_point_cloud;
+  scan.cloud_charts = mesh->cloud_charts;
   scan.storage = std::move(mesh);
   return scan;
 }

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <random>
 #include <string>
 #include <system_error>
@@ -232,6 +233,7 @@ TEST(Ingest, UnorganisedPointCloudIsMeshedInTheSensorView) {
     xyz += std::to_string(p.x()) + "," + std::to_string(p.y()) + "," + std::to_string(p.z()) + " 0.5\n";
   const Mesh m = read_mesh(write_file("f.xyz", xyz));
   EXPECT_TRUE(m.from_point_cloud);
+  EXPECT_EQ(m.cloud_charts, 0u);  // one view sees it all
   // Nearly the full grid's 2 x 59 x 59 triangles, none long, all facing one way.
   EXPECT_GT(m.triangles.size(), 0.85 * 2 * 59 * 59);
   EXPECT_LT(m.triangles.size(), 1.05 * 2 * 59 * 59);
@@ -243,6 +245,55 @@ TEST(Ingest, UnorganisedPointCloudIsMeshedInTheSensorView) {
   }
   const double full = 0.059 * 0.059 * std::sqrt(1.04);
   EXPECT_NEAR(area, full, 0.1 * full);
+}
+
+TEST(Ingest, ACloudThatWrapsRoundIsMeshedInCharts) {
+  // 260 degrees of a 0.15 m tube, 0.2 m long, 0.9 m in front of the sensor, as views
+  // merged round it give it (points shuffled, 20 um of noise): in the sensor's image its
+  // sides fold over, and one Delaunay triangulation there left them unmeshed or bridged
+  // the back to the front. Meshed in charts, every triangle lies on the tube and faces the
+  // way its neighbours do, and the mesh covers the whole tube once.
+  const double R = 0.15, arc = 260.0 * std::numbers::pi / 180.0, step = 0.001;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> jitter(-0.2, 0.2);
+  std::normal_distribution<double> noise(0.0, 2e-5);
+  Mesh m;
+  const Eigen::Vector3d axis_point(0.0, 0.0, 0.9 + R);  // the tube's axis runs along y
+  const auto radial = [&](const Eigen::Vector3f& p) {
+    Eigen::Vector3d d = p.cast<double>() - axis_point;
+    d.y() = 0.0;
+    return d;
+  };
+  const int ns = static_cast<int>(arc * R / step), nt = static_cast<int>(0.2 / step);
+  for (int j = 0; j < nt; ++j)
+    for (int i = 0; i < ns; ++i) {
+      const double a = -0.5 * arc + (i + jitter(rng)) * step / R, r = R + noise(rng);
+      m.vertices.emplace_back(static_cast<float>(r * std::sin(a)),
+                              static_cast<float>(-0.1 + (j + jitter(rng)) * step),
+                              static_cast<float>(axis_point.z() - r * std::cos(a)));
+    }
+  std::shuffle(m.vertices.begin(), m.vertices.end(), rng);
+  mesh_point_cloud(m);
+  EXPECT_GE(m.cloud_charts, 3u);
+  double area = 0.0;
+  std::size_t outwards = 0, off_surface = 0;
+  std::vector<char> used(m.vertices.size(), 0);
+  for (const auto& t : m.triangles) {
+    for (const auto v : t) used[v] = 1;
+    const Eigen::Vector3f e1 = m.vertices[t[1]] - m.vertices[t[0]], e2 = m.vertices[t[2]] - m.vertices[t[0]];
+    EXPECT_LT(std::max(e1.norm(), e2.norm()), 4 * step);
+    const Eigen::Vector3d n = e1.cross(e2).cast<double>();
+    area += 0.5 * n.norm();
+    const Eigen::Vector3d out = radial(m.vertices[t[0]]).normalized();
+    outwards += n.dot(out) > 0.0;
+    off_surface += std::abs(n.normalized().dot(out)) < std::cos(0.35);  // 20 degrees
+  }
+  const double full = arc * R * 0.2;
+  EXPECT_NEAR(area, full, 0.03 * full);
+  // One way round: outwards, as the side facing the sensor does.
+  EXPECT_EQ(outwards, m.triangles.size());
+  EXPECT_LT(off_surface, m.triangles.size() / 1000);
+  EXPECT_GT(std::count(used.begin(), used.end(), 1), static_cast<std::ptrdiff_t>(0.995 * m.vertices.size()));
 }
 
 TEST(Ingest, OrganisedCloudIsStitchedRowByRowAtAnyDensity) {
@@ -298,6 +349,7 @@ TEST(Ingest, UnorganisedCloudKeepsEveryPointAtAnyDensity) {
       }
     std::shuffle(m.vertices.begin(), m.vertices.end(), rng);
     mesh_point_cloud(m);
+    EXPECT_EQ(m.cloud_charts, 0u);  // at 55 degrees to the view: no fold
     std::vector<char> used(m.vertices.size(), 0);
     std::vector<std::array<std::uint32_t, 3>> sorted;
     double area = 0.0;
