@@ -10,21 +10,25 @@ pid=
 cleanup() { [ -n "$pid" ] && kill "$pid" 2>/dev/null; rm -rf "$tmp"; }
 trap cleanup EXIT
 
+runs=0
 start_edge() {  # args: extra options
-  "$edge" run --board "$board" --port 0 "$@" 2>"$tmp/edge.log" &
+  # A fresh log each run: the background shell truncates it only once it has forked,
+  # and a reused one could still show the last run's port.
+  runs=$((runs + 1)); log="$tmp/edge$runs.log"
+  "$edge" run --board "$board" --port 0 "$@" 2>"$log" &
   pid=$!
   i=0
-  while ! grep -q 'listening on port' "$tmp/edge.log"; do
-    i=$((i + 1)); [ $i -gt 100 ] && { cat "$tmp/edge.log"; echo "edge did not start"; exit 1; }
+  while ! grep -qs 'listening on port [0-9]' "$log"; do
+    i=$((i + 1)); [ $i -gt 100 ] && { cat "$log"; echo "edge did not start"; exit 1; }
     sleep 0.1
   done
-  port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$tmp/edge.log")
+  port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$log")
 }
 stop_edge() {
   kill -TERM "$pid"
   code=0; wait "$pid" || code=$?
   pid=
-  [ "$code" -eq 0 ] || { cat "$tmp/edge.log"; echo "edge exit code $code"; exit 1; }
+  [ "$code" -eq 0 ] || { cat "$log"; echo "edge exit code $code"; exit 1; }
 }
 
 start_edge
@@ -33,8 +37,8 @@ grep -q '^ack job 42: 2 defects, sequence [0-9]*, digest [0-9a-f]\{64\} (matches
 # A frame that is not a defect list is refused: exit 1, reason printed.
 if "$host" send "$data/ack.dml" --to "127.0.0.1:$port" 2>"$tmp/err"; then echo "ack.dml accepted"; exit 1; fi
 stop_edge
-grep -q "job 42 panel 'door-FL-0001': 2 defects" "$tmp/edge.log" || { cat "$tmp/edge.log"; exit 1; }
-grep -q 'shut down cleanly' "$tmp/edge.log"
+grep -q "job 42 panel 'door-FL-0001': 2 defects" "$log" || { cat "$log"; exit 1; }
+grep -q 'shut down cleanly' "$log"
 
 start_edge --key "$data/golden.key"
 # Without the key: refused as unauthenticated.
