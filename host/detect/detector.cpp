@@ -240,7 +240,8 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const cv::Mat interior = (weight > 0.0f) & ~edge_zone;
   const std::vector<int> scales = detection_scales(h);
   ReferenceSurface reference(map, cfg.reference_window);
-  Deviation deviation = deviation_from_reference(map, reference, interior, scales, cfg);
+  Deviation deviation =
+      deviation_from_reference(map, reference, interior, scales, cfg, chart_w.squaredNorm() > 0.0);
   st.deviation_noise = deviation.noise;
   const cv::Mat& dev = deviation.along_normal;
   const cv::Mat& spike = deviation.spikes;

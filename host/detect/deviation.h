@@ -28,7 +28,9 @@ struct Deviation {
 
 // interior: CV_8U, non-zero on the pixels whose statistics set the thresholds (away
 // from borders and openings). 'reference' is left holding the last fit.
+// keep_border_candidates (a chart's map): candidates reaching the border stay in the refits.
 Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& reference, const cv::Mat& interior,
-                                   const std::vector<int>& scales, const DetectConfig& cfg);
+                                   const std::vector<int>& scales, const DetectConfig& cfg,
+                                   bool keep_border_candidates);
 
 }  // namespace dentmark::detect
