@@ -773,27 +773,42 @@ TEST(Detect, ASideTurnedAwayFromTheSensorKeepsDentsAsDents) {
   }
 }
 
+// Defects 'diameter' across at (degrees round the axis, t along it): dents on the
+// negative side, bumps on the positive.
+std::vector<Planted> round_the_axis(double R, const std::vector<std::pair<double, double>>& at,
+                                    double diameter, double depth) {
+  std::vector<Planted> planted;
+  for (const auto& [degrees, t] : at)
+    planted.push_back({R * degrees * std::numbers::pi / 180.0, t, diameter, degrees < 0 ? -depth : depth});
+  return planted;
+}
+
+// The scan's points alone, shuffled (an unorganised cloud), meshed as dentmark meshes one.
+ingest::Mesh as_cloud(const WrappedScan& scan, double step) {
+  ingest::Mesh cloud;
+  cloud.vertices = scan.mesh(step).vertices;
+  std::shuffle(cloud.vertices.begin(), cloud.vertices.end(), std::mt19937(8));
+  ingest::mesh_point_cloud(cloud);
+  return cloud;
+}
+
 TEST(Detect, AWrappedCloudsSidesAreMeshedAndInspected) {
   // The 260-degree tube as an unorganised cloud (merged views, points shuffled): meshed
   // in charts (ingest's fold_mesher), its defects past 90 degrees from the sensor are
   // found as on the mesh (the other generator's SW86 and SW91 lost those on the sides
   // their sensor-view triangulation could not mesh).
   const double R = 0.15;
-  std::vector<Planted> planted;
-  for (const auto& [degrees, t] : std::vector<std::pair<double, double>>{{-110.0, 0.0},
-                                                                         {-95.0, -0.05},
-                                                                         {-60.0, 0.03},
-                                                                         {0.0, -0.02},
-                                                                         {70.0, 0.0},
-                                                                         {100.0, 0.06},
-                                                                         {112.0, -0.04}})
-    planted.push_back({R * degrees * std::numbers::pi / 180.0, t, 0.018, degrees < 0 ? -1.5e-4 : 1.5e-4});
-  const WrappedScan scan{R, R * 4.54, 0.0, planted};
-  ingest::Mesh cloud;
-  cloud.vertices = scan.mesh(0.0006).vertices;
-  std::shuffle(cloud.vertices.begin(), cloud.vertices.end(), std::mt19937(8));
-  ingest::mesh_point_cloud(cloud);
-  const detect::Detection det = detect::detect(cloud, detect::DetectConfig{});
+  const WrappedScan scan{R, R * 4.54, 0.0,
+                         round_the_axis(R,
+                                        {{-110.0, 0.0},
+                                         {-95.0, -0.05},
+                                         {-60.0, 0.03},
+                                         {0.0, -0.02},
+                                         {70.0, 0.0},
+                                         {100.0, 0.06},
+                                         {112.0, -0.04}},
+                                        0.018, 1.5e-4)};
+  const detect::Detection det = detect::detect(as_cloud(scan, 0.0006), detect::DetectConfig{});
   EXPECT_GE(det.stats.charts, 3u);
   scan.expect_found(det);
 }
@@ -803,20 +818,17 @@ TEST(Detect, ASteepFendersCloudFromOneViewIsMeshedInCharts) {
   // seen nearly edge-on, where the sensor-view triangulation lost the defects at 70
   // degrees (5 of 7 found); meshed in charts, all are.
   const double R = 0.2;
-  std::vector<Planted> planted;
-  for (const auto& [degrees, t] : std::vector<std::pair<double, double>>{{-70.0, 0.0},
-                                                                         {-55.0, -0.05},
-                                                                         {-30.0, 0.03},
-                                                                         {0.0, -0.02},
-                                                                         {40.0, 0.0},
-                                                                         {62.0, 0.06},
-                                                                         {72.0, -0.04}})
-    planted.push_back({R * degrees * std::numbers::pi / 180.0, t, 0.016, degrees < 0 ? -1.2e-4 : 1.2e-4});
-  const WrappedScan scan{R, R * 2 * 86.0 * std::numbers::pi / 180.0, 0.0, planted};
-  ingest::Mesh cloud;
-  cloud.vertices = scan.mesh(0.0005).vertices;
-  std::shuffle(cloud.vertices.begin(), cloud.vertices.end(), std::mt19937(8));
-  ingest::mesh_point_cloud(cloud);
+  const WrappedScan scan{R, R * 2 * 86.0 * std::numbers::pi / 180.0, 0.0,
+                         round_the_axis(R,
+                                        {{-70.0, 0.0},
+                                         {-55.0, -0.05},
+                                         {-30.0, 0.03},
+                                         {0.0, -0.02},
+                                         {40.0, 0.0},
+                                         {62.0, 0.06},
+                                         {72.0, -0.04}},
+                                        0.016, 1.2e-4)};
+  const ingest::Mesh cloud = as_cloud(scan, 0.0005);
   EXPECT_GE(cloud.cloud_charts, 2u);
   scan.expect_found(detect::detect(cloud, detect::DetectConfig{}));
 }
