@@ -44,6 +44,7 @@ class Grid {
     origin_ = pts[valid[0]].cast<double>();
     for (const std::uint32_t i : valid) origin_ = origin_.cwiseMin(pts[i].cast<double>());
     point_cell_.assign(pts.size(), 0);
+    lookup_.reserve(valid.size() / 32 + 16);  // (not rehashed as it grows)
     for (const std::uint32_t i : valid) {
       const Eigen::Vector3d p = pts[i].cast<double>();
       const auto idx = index_of(p);
@@ -62,8 +63,6 @@ class Grid {
   std::vector<Cell>& cells() { return cells_; }
   const std::vector<Cell>& cells() const { return cells_; }
   std::uint32_t cell_of_point(std::uint32_t i) const { return point_cell_[i]; }
-  // The cell holding p, or -1.
-  std::int64_t cell_at(const Eigen::Vector3d& p) const { return find(index_of(p)); }
 
   template <typename Visit>
   void for_each_neighbour(std::uint32_t c, Visit visit) const {
@@ -233,7 +232,7 @@ void assign_owners(Grid& grid, const std::vector<Eigen::Vector3d>& axes) {
 
 // Appends the triangles of chart k: each connected part of the cells within kReachDegrees
 // of its axis, triangulated in the axis's plane; kept where the chart owns the cell of
-// the triangle's centroid, and wound the way that part's cells face.
+// the triangle's first point (lowest index), and wound the way that part's cells face.
 void mesh_chart(Mesh& mesh, const Grid& grid, const std::vector<std::uint32_t>& valid,
                 const Eigen::Vector3d& axis, int k) {
   const auto& cells = grid.cells();
@@ -287,17 +286,14 @@ void mesh_chart(Mesh& mesh, const Grid& grid, const std::vector<std::uint32_t>& 
     }
     const std::size_t first = mesh.triangles.size();
     mesh_delaunay(mesh, img, points[p]);
-    const auto kept = std::remove_if(mesh.triangles.begin() + static_cast<std::ptrdiff_t>(first),
-                                     mesh.triangles.end(), [&](const std::array<std::uint32_t, 3>& t) {
-                                       const Eigen::Vector3d centroid = (mesh.vertices[t[0]].cast<double>() +
-                                                                         mesh.vertices[t[1]].cast<double>() +
-                                                                         mesh.vertices[t[2]].cast<double>()) /
-                                                                        3.0;
-                                       std::int64_t c = grid.cell_at(centroid);
-                                       if (c < 0) c = grid.cell_of_point(t[0]);
-                                       return cells[static_cast<std::size_t>(c)].owner != k ||
-                                              part[static_cast<std::size_t>(c)] != static_cast<int>(p);
-                                     });
+    const auto kept =
+        std::remove_if(mesh.triangles.begin() + static_cast<std::ptrdiff_t>(first), mesh.triangles.end(),
+                       [&](const std::array<std::uint32_t, 3>& t) {
+                         // (Its centroid's cell, a hash lookup per triangle, led
+                         // the profile.)
+                         const std::uint32_t c = grid.cell_of_point(std::min({t[0], t[1], t[2]}));
+                         return cells[c].owner != k || part[c] != static_cast<int>(p);
+                       });
     mesh.triangles.erase(kept, mesh.triangles.end());
     for (std::size_t t = first; t < mesh.triangles.size(); ++t) {
       auto& tri = mesh.triangles[t];
