@@ -15,7 +15,7 @@ namespace dentmark::ingest {
 struct Mesh {
   std::vector<Eigen::Vector3f> vertices;                // m
   std::vector<std::array<std::uint32_t, 3>> triangles;  // indices into vertices
-  bool from_point_cloud = false;                        // meshed here in the sensor's view (2.5D)
+  bool from_point_cloud = false;                        // a point cloud, meshed here
   std::size_t cloud_charts = 0;        // a cloud that folds over in the sensor's view: meshed in these charts
   std::size_t input_points = 0;        // vertices / points in the file
   std::size_t dropped_faces = 0;       // faces with < 3 corners or non-finite corners

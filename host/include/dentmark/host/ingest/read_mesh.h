@@ -32,7 +32,7 @@ struct Scan {
   std::size_t input_points = 0;         // vertices / points in the file
   std::size_t dropped_faces = 0;        // faces with < 3 corners or non-finite corners
   std::size_t nonfinite_vertices = 0;   // vertices without a position: NaN/Inf, or a cloud's (0, 0, 0)
-  bool from_point_cloud = false;        // meshed here in the sensor's view (2.5D)
+  bool from_point_cloud = false;        // a point cloud, meshed here
   std::size_t cloud_charts = 0;         // a cloud that folds over in the view: meshed in these charts
   bool in_place = false;                // `mesh` is the file's own bytes
   std::shared_ptr<const void> storage;  // the mapped file or the Mesh behind `mesh`
