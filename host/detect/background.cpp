@@ -13,6 +13,7 @@ namespace {
 
 constexpr double kCell = 0.016;       // side of the cells the surface is split in (m)
 constexpr double kLargePiece = 0.25;  // of the largest piece's size: a candidate for the panel
+constexpr double kSmallPanel = 0.1;   // ... or this much, if it stands before the largest
 constexpr double kMinArea = 0.002;    // m², ~45 x 45 mm: smaller pieces always stay
 constexpr double kOffShape = 0.05;    // median distance from the panel's shape (m)
 
@@ -172,14 +173,36 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
 
   // The panel: of the pieces the sensor sees at least a quarter as large as the largest,
   // the one nearest to it (w points to it). Seen from the sensor (the frame's origin), a
-  // wall behind the panel is larger for its distance: it counts by its solid angle.
+  // wall behind the panel is larger for its distance: it counts by its solid angle. A
+  // wall that fills the view round a small panel can still be over four times its size
+  // (a 0.5 x 0.4 m panel 5 cm before a wall 1.35 m square: 0.18 of it, and the wall was
+  // taken for the panel and the panel left out): a piece down to a tenth of the largest
+  // is a candidate too where it stands before the largest's shape by more than kOffShape.
   const bool from_sensor = frame.to_map(Eigen::Vector3d::Zero()).z() > 0.1;
   const auto size = [&](const Piece& p) { return from_sensor ? p.view : p.area; };
-  double largest = 0.0;
-  for (const Piece& p : pieces) largest = std::max(largest, size(p));
+  const Piece* largest = &pieces[0];
+  for (const Piece& p : pieces)
+    if (size(p) > size(*largest)) largest = &p;
+  const auto median_off = [&](const Piece& p, const Shape& of) {  // > 0: towards the sensor
+    std::vector<double> off;
+    off.reserve(p.cells.size());
+    for (const int m : p.cells) {
+      const Cell& c = cells[static_cast<std::size_t>(m)];
+      off.push_back(c.w / c.area - of.at(c.u / c.area, c.v / c.area));
+    }
+    const auto mid = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
+    std::nth_element(off.begin(), mid, off.end());
+    return *mid;
+  };
+  const Shape largest_shape(cells, largest->cells);
+  const auto candidate = [&](const Piece& p) {
+    if (size(p) >= kLargePiece * size(*largest)) return true;
+    return p.area >= kMinArea && size(p) >= kSmallPanel * size(*largest) &&
+           median_off(p, largest_shape) > kOffShape;
+  };
   const Piece* panel = nullptr;
   for (const Piece& p : pieces)
-    if (size(p) >= kLargePiece * largest && (!panel || p.w / p.area > panel->w / panel->area)) panel = &p;
+    if (candidate(p) && (!panel || p.w / p.area > panel->w / panel->area)) panel = &p;
   const Shape shape(cells, panel->cells);
 
   for (const Piece& p : pieces) {

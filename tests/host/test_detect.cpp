@@ -8,6 +8,7 @@
 #include <functional>
 #include <numbers>
 #include <random>
+#include <set>
 #include <tuple>
 
 #include "dentmark/host/detect/detector.h"
@@ -390,6 +391,65 @@ TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
     EXPECT_EQ(r.eval.false_alarms, 0) << (floor ? "floor" : "wall");
     EXPECT_GT(r.det.stats.background_area, 0.9 * wall_area) << (floor ? "floor" : "wall");
     EXPECT_LT(r.det.stats.background_area, 1.2 * wall_area) << (floor ? "floor" : "wall");
+  }
+}
+
+// Adds a wall at height z_at(x, y), half x half metres round the sensor's axis with
+// samples `step` apart and 20 um noise, seen right up to the panel's silhouette (hidden
+// only where a panel's vertex lies on the ray within 4 mm). Returns the wall's area.
+double add_wall_to_the_silhouette(ingest::Mesh& mesh, const std::function<double(double, double)>& z_at,
+                                  double step, double half) {
+  const double cell = 0.002;  // of the panel's shadow, in x / z and y / z
+  std::set<std::pair<int, int>> shadow;
+  for (const Eigen::Vector3f& v : mesh.vertices)
+    shadow.insert({static_cast<int>(std::floor(v.x() / v.z() / cell)),
+                   static_cast<int>(std::floor(v.y() / v.z() / cell))});
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> noise(0.0, 2e-5);
+  const int n = static_cast<int>(2 * half / step);
+  std::vector<std::int64_t> index(static_cast<std::size_t>(n * n), -1);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) {
+      const double x = step * (c - n / 2), y = step * (r - n / 2), z = z_at(x, y) + noise(rng);
+      const int gx = static_cast<int>(std::floor(x / z / cell)),
+                gy = static_cast<int>(std::floor(y / z / cell));
+      bool hidden = false;
+      for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b) hidden = hidden || shadow.count({gx + a, gy + b}) > 0;
+      if (hidden) continue;
+      index[static_cast<std::size_t>(r * n + c)] = static_cast<std::int64_t>(mesh.vertices.size());
+      mesh.vertices.emplace_back(x, y, z);
+    }
+  double area = 0.0;
+  for (int r = 0; r + 1 < n; ++r)
+    for (int c = 0; c + 1 < n; ++c) {
+      const auto at = [&](int dr, int dc) { return index[static_cast<std::size_t>((r + dr) * n + c + dc)]; };
+      if (at(0, 0) < 0 || at(0, 1) < 0 || at(1, 0) < 0 || at(1, 1) < 0) continue;
+      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>(at(dr, dc)); };
+      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
+      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
+      area += step * step;
+    }
+  return area;
+}
+
+TEST(Detect, APanelBeforeAWallThatFillsTheViewIsThePanel) {
+  // A 0.5 x 0.4 m panel 5 cm before a wall 1.35 m square (upright and sloping), seen
+  // round it up to its silhouette: the sensor sees the wall over five times as large as
+  // the panel, and took the wall for the panel and left the panel out (0 of 5 found).
+  const sim::scan::SynthScan door = sim::scan::synthesize_scan(small_door(3));
+  for (const double slope : {0.0, 0.4}) {
+    double behind = -1.0;  // the wall's plane through the panel's farthest point
+    for (const Eigen::Vector3f& v : door.vertices) behind = std::max(behind, v.z() - slope * v.y());
+    double wall_area = 0.0;
+    const ScanRun r = run(small_door(3), [&](ingest::Mesh& mesh) {
+      wall_area = add_wall_to_the_silhouette(
+          mesh, [&](double, double y) { return behind + 0.05 + slope * y; }, 0.001, 0.675);
+    });
+    EXPECT_EQ(r.eval.matched, 5) << "slope " << slope;
+    EXPECT_EQ(r.eval.false_alarms, 0) << "slope " << slope;
+    EXPECT_GT(r.det.stats.background_area, 0.9 * wall_area) << "slope " << slope;
+    EXPECT_LT(r.det.stats.background_area, 1.2 * wall_area) << "slope " << slope;
   }
 }
 
