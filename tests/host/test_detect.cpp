@@ -343,6 +343,23 @@ void add_grid_triangles(ingest::Mesh& mesh, int rows, int cols) {
     }
 }
 
+// Two triangles per cell of an n x n grid of samples `step` apart whose four corners were
+// seen (index: the vertex of each grid point, -1 where unseen). Returns their area.
+double add_seen_grid_triangles(ingest::Mesh& mesh, const std::vector<std::int64_t>& index, int n,
+                               double step) {
+  double area = 0.0;
+  for (int r = 0; r + 1 < n; ++r)
+    for (int c = 0; c + 1 < n; ++c) {
+      const auto at = [&](int dr, int dc) { return index[static_cast<std::size_t>((r + dr) * n + c + dc)]; };
+      if (at(0, 0) < 0 || at(0, 1) < 0 || at(1, 0) < 0 || at(1, 1) < 0) continue;
+      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>(at(dr, dc)); };
+      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
+      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
+      area += step * step;
+    }
+  return area;
+}
+
 // Adds a wall at depth z (the panel's centre is at 0.9 m; on a slope for a floor), n x n
 // samples 1.5 mm apart with 20 um noise, as a scanner whose view is larger than the panel
 // records it; the panel's shadow on it (its vertices along their rays, as a box) is not
@@ -366,17 +383,7 @@ double add_wall_behind(ingest::Mesh& mesh, bool floor, int n, double z = 1.5) {
       index[static_cast<std::size_t>(r * n + c)] = static_cast<std::int64_t>(mesh.vertices.size());
       mesh.vertices.emplace_back(p.x(), p.y(), z_at(p.x(), p.y()) + noise(rng));
     }
-  double area = 0.0;
-  for (int r = 0; r + 1 < n; ++r)
-    for (int c = 0; c + 1 < n; ++c) {
-      const auto at = [&](int dr, int dc) { return index[static_cast<std::size_t>((r + dr) * n + c + dc)]; };
-      if (at(0, 0) < 0 || at(0, 1) < 0 || at(1, 0) < 0 || at(1, 1) < 0) continue;
-      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>(at(dr, dc)); };
-      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
-      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
-      area += step * step;
-    }
-  return area;
+  return add_seen_grid_triangles(mesh, index, n, step);
 }
 
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
@@ -420,17 +427,7 @@ double add_wall_to_the_silhouette(ingest::Mesh& mesh, const std::function<double
       index[static_cast<std::size_t>(r * n + c)] = static_cast<std::int64_t>(mesh.vertices.size());
       mesh.vertices.emplace_back(x, y, z);
     }
-  double area = 0.0;
-  for (int r = 0; r + 1 < n; ++r)
-    for (int c = 0; c + 1 < n; ++c) {
-      const auto at = [&](int dr, int dc) { return index[static_cast<std::size_t>((r + dr) * n + c + dc)]; };
-      if (at(0, 0) < 0 || at(0, 1) < 0 || at(1, 0) < 0 || at(1, 1) < 0) continue;
-      const auto k = [&](int dr, int dc) { return static_cast<std::uint32_t>(at(dr, dc)); };
-      mesh.triangles.push_back({k(0, 0), k(1, 0), k(0, 1)});
-      mesh.triangles.push_back({k(0, 1), k(1, 0), k(1, 1)});
-      area += step * step;
-    }
-  return area;
+  return add_seen_grid_triangles(mesh, index, n, step);
 }
 
 TEST(Detect, APanelBeforeAWallThatFillsTheViewIsThePanel) {
