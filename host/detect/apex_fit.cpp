@@ -73,13 +73,43 @@ void PixelSamples::append(std::int32_t pixel, std::vector<Eigen::Vector3d>& out)
 namespace {
 
 using Vector5d = Eigen::Matrix<double, 5, 1>;
-using Matrix5d = Eigen::Matrix<double, 5, 5>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 Vector5d basis(double x, double y) {
   const double r2 = x * x + y * y;
   Vector5d b;
   b << 1, x, y, r2, r2 * r2;
   return b;
+}
+
+// With a term in r: a cone's tip.
+Vector6d cone_basis(double x, double y) {
+  const double r2 = x * x + y * y;
+  Vector6d b;
+  b << 1, x, y, std::sqrt(r2), r2, r2 * r2;
+  return b;
+}
+
+// The least-squares coefficients of the samples' deviation (z) over basis(x, y), or
+// nothing where the samples cannot settle them.
+template <int K, typename Basis>
+std::optional<Eigen::Matrix<double, K, 1>> least_squares(const std::vector<Eigen::Vector3d>& use,
+                                                         Basis basis) {
+  using Vector = Eigen::Matrix<double, K, 1>;
+  using Matrix = Eigen::Matrix<double, K, K>;
+  Matrix N = Matrix::Zero();
+  Vector rhs = Vector::Zero();
+  for (const auto& q : use) {
+    const Vector b = basis(q.x(), q.y());
+    N.template selfadjointView<Eigen::Lower>().rankUpdate(b);
+    rhs += q.z() * b;
+  }
+  N.template triangularView<Eigen::Upper>() = N.transpose();
+  const Eigen::LDLT<Matrix> ldlt(N);
+  if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 1e-9 * N(0, 0)) return std::nullopt;
+  const Vector p = ldlt.solve(rhs);
+  if (!p.allFinite()) return std::nullopt;
+  return p;
 }
 
 }  // namespace
@@ -116,18 +146,9 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
   Vector5d p = Vector5d::Zero();
   for (int pass = 0; pass < 4; ++pass) {
     if (use.size() < kMinSamples) return std::nullopt;
-    Matrix5d N = Matrix5d::Zero();
-    Vector5d rhs = Vector5d::Zero();
-    for (const auto& q : use) {
-      const Vector5d b = basis(q.x(), q.y());
-      N.selfadjointView<Eigen::Lower>().rankUpdate(b);
-      rhs += q.z() * b;
-    }
-    N.triangularView<Eigen::Upper>() = N.transpose();
-    const Eigen::LDLT<Matrix5d> ldlt(N);
-    if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 1e-9 * N(0, 0)) return std::nullopt;
-    p = ldlt.solve(rhs);
-    if (!p.allFinite()) return std::nullopt;
+    const auto fitted = least_squares<5>(use, basis);
+    if (!fitted) return std::nullopt;
+    p = *fitted;
     if (pass == 3) break;
     // Drop residuals beyond 4 robust sigmas of the fit.
     std::vector<double> res;
@@ -143,13 +164,6 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
   // A sharp ding's tip is a cone's, which no polynomial in r² follows: its apex was read
   // 10-14 % short. Where a term in r fits clearly better (an F test on the same samples,
   // far beyond what noise gives a smooth apex), the model takes it.
-  using Vector6d = Eigen::Matrix<double, 6, 1>;
-  const auto cone_basis = [](double x, double y) {
-    const double r2 = x * x + y * y;
-    Vector6d b;
-    b << 1, x, y, std::sqrt(r2), r2, r2 * r2;
-    return b;
-  };
   Vector6d cone = Vector6d::Zero();
   bool sharp = false;
   // Round ones only: a crease-shaped trough's cross-section is no cone (and read 25 %
@@ -157,28 +171,17 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
   Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
   for (const auto& q : use) spread += std::abs(q.z()) * q.head<2>() * q.head<2>().transpose();
   const Eigen::Vector2d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
-  if (use.size() >= 2 * kMinSamples && axes(1) < kRound * axes(0)) {
-    Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
-    Vector6d rhs = Vector6d::Zero();
-    for (const auto& q : use) {
-      const Vector6d b = cone_basis(q.x(), q.y());
-      N.selfadjointView<Eigen::Lower>().rankUpdate(b);
-      rhs += q.z() * b;
-    }
-    N.triangularView<Eigen::Upper>() = N.transpose();
-    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(N);
-    if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 1e-9 * N(0, 0)) {
-      cone = ldlt.solve(rhs);
+  if (use.size() >= 2 * kMinSamples && axes(1) < kRound * axes(0))
+    if (const auto fitted = least_squares<6>(use, cone_basis)) {
+      cone = *fitted;
       double smooth_rss = 0.0, cone_rss = 0.0;
       for (const auto& q : use) {
         smooth_rss += std::pow(q.z() - basis(q.x(), q.y()).dot(p), 2);
         cone_rss += std::pow(q.z() - cone_basis(q.x(), q.y()).dot(cone), 2);
       }
       constexpr double kF = 25.0;  // F(1, n) beyond 25: p < 1e-5
-      sharp = cone.allFinite() &&
-              (smooth_rss - cone_rss) * static_cast<double>(use.size() - 6) > kF * std::max(cone_rss, 1e-30);
+      sharp = (smooth_rss - cone_rss) * static_cast<double>(use.size() - 6) > kF * std::max(cone_rss, 1e-30);
     }
-  }
   const auto model = [&](double x, double y) {
     return sharp ? cone_basis(x, y).dot(cone) : basis(x, y).dot(p);
   };
