@@ -20,8 +20,8 @@ namespace {
 // scan comes in any order, and sorting 10 M keys and then gathering per-triangle sums in
 // sorted order costs two random passes over memory. Instead one pass files each
 // triangle's contribution under its coarse bucket (8^kBucketLevels cells of the octree)
-// in chains of small chunks, and each bucket, tens of thousands of records that fit in
-// the cache, is summed through a small hash table on the remaining key bits.
+// in chains of small chunks, and each bucket is summed octant by octant through hash
+// tables on the remaining key bits that stay in the cache.
 //
 // In sensor order a leaf's triangles come back row after row, so they are first summed
 // in an "open leaf" (a small direct-mapped table) and about one record per leaf is filed
