@@ -117,8 +117,7 @@ std::optional<Eigen::Matrix<double, K, 1>> least_squares(const std::vector<Eigen
 namespace {
 
 struct ApexFit {
-  Vector5d p;   // model coefficients over coordinates scaled by the radius
-  double x, y;  // the model's extreme (scaled), within half the radius
+  double x, y;  // the model's extreme (scaled by the radius), within half of it
   double value;
 };
 
@@ -186,7 +185,7 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
     return sharp ? cone_basis(x, y).dot(cone) : basis(x, y).dot(p);
   };
   // The model's extreme on a grid over the inner half of the disc.
-  ApexFit f{p, 0.0, 0.0, model(0.0, 0.0)};
+  ApexFit f{0.0, 0.0, model(0.0, 0.0)};
   constexpr int kSteps = 10;
   for (int i = -kSteps; i <= kSteps; ++i)
     for (int j = -kSteps; j <= kSteps; ++j) {

@@ -106,6 +106,22 @@ class Shape {
   Eigen::Matrix<double, 6, 1> c_ = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
+// The median over a piece's cells of their heights off `shape` (> 0: towards the
+// sensor), or of their distances from it.
+double median_off(const std::vector<Cell>& cells, const std::vector<int>& members, const Shape& shape,
+                  bool distance) {
+  std::vector<double> off;
+  off.reserve(members.size());
+  for (const int m : members) {
+    const Cell& c = cells[static_cast<std::size_t>(m)];
+    const double d = c.w / c.area - shape.at(c.u / c.area, c.v / c.area);
+    off.push_back(distance ? std::abs(d) : d);
+  }
+  const auto mid = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
+  std::nth_element(off.begin(), mid, off.end());
+  return *mid;
+}
+
 }  // namespace
 
 Background find_background(const LinearOctree& tree, const HeightMap& frame, const Box& box) {
@@ -183,22 +199,11 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
   const Piece* largest = &pieces[0];
   for (const Piece& p : pieces)
     if (size(p) > size(*largest)) largest = &p;
-  const auto median_off = [&](const Piece& p, const Shape& of) {  // > 0: towards the sensor
-    std::vector<double> off;
-    off.reserve(p.cells.size());
-    for (const int m : p.cells) {
-      const Cell& c = cells[static_cast<std::size_t>(m)];
-      off.push_back(c.w / c.area - of.at(c.u / c.area, c.v / c.area));
-    }
-    const auto mid = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
-    std::nth_element(off.begin(), mid, off.end());
-    return *mid;
-  };
   const Shape largest_shape(cells, largest->cells);
   const auto candidate = [&](const Piece& p) {
     if (size(p) >= kLargePiece * size(*largest)) return true;
     return p.area >= kMinArea && size(p) >= kSmallPanel * size(*largest) &&
-           median_off(p, largest_shape) > kOffShape;
+           median_off(cells, p.cells, largest_shape, false) > kOffShape;
   };
   const Piece* panel = nullptr;
   for (const Piece& p : pieces)
@@ -206,16 +211,7 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
   const Shape shape(cells, panel->cells);
 
   for (const Piece& p : pieces) {
-    if (&p == panel || p.area < kMinArea) continue;
-    std::vector<double> off;
-    off.reserve(p.cells.size());
-    for (const int m : p.cells) {
-      const Cell& c = cells[static_cast<std::size_t>(m)];
-      off.push_back(std::abs(c.w / c.area - shape.at(c.u / c.area, c.v / c.area)));
-    }
-    const auto mid = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
-    std::nth_element(off.begin(), mid, off.end());
-    if (*mid <= kOffShape) continue;
+    if (&p == panel || p.area < kMinArea || median_off(cells, p.cells, shape, true) <= kOffShape) continue;
     if (out.leaf.empty()) out.leaf.assign(n, 0);
     for (const int m : p.cells) {
       const Cell& c = cells[static_cast<std::size_t>(m)];
