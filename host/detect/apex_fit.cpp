@@ -123,7 +123,7 @@ struct ApexFit {
 
 // One robust fit around (cx, cy) (m).
 std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx, double cy, double radius,
-                              double sign) {
+                              double sign, bool round_window) {
   constexpr std::size_t kMinSamples = 12;
   constexpr double kRound = 1.5;     // largest / smallest spread of a round apex
   std::vector<Eigen::Vector3d> use;  // x, y scaled to the radius; deviation
@@ -170,7 +170,7 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
   Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
   for (const auto& q : use) spread += std::abs(q.z()) * q.head<2>() * q.head<2>().transpose();
   const Eigen::Vector2d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
-  if (use.size() >= 2 * kMinSamples && axes(1) < kRound * axes(0))
+  if (round_window && use.size() >= 2 * kMinSamples && axes(1) < kRound * axes(0))
     if (const auto fitted = least_squares<6>(use, cone_basis)) {
       cone = *fitted;
       double smooth_rss = 0.0, cone_rss = 0.0;
@@ -197,16 +197,16 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
   return f;
 }
 
-}  // namespace
-
-std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign) {
+// The fit over the disc of 'radius', re-centred (fit_apex_height in the header).
+std::optional<double> fit_apex(const std::vector<ApexSample>& samples, double radius, double sign,
+                               bool round_window) {
   if (!(radius > 0.0)) return std::nullopt;
   // The radial terms are centred on the apex: re-centre on the model's extreme until
   // it stays put (an off-centre quartic cannot follow the apex's flattening).
   double cx = 0.0, cy = 0.0;
   std::optional<ApexFit> fit;
   for (int round = 0; round < 4; ++round) {
-    const auto f = fit_at(samples, cx, cy, radius, sign);
+    const auto f = fit_at(samples, cx, cy, radius, sign, round_window);
     if (!f) break;
     fit = f;
     if (std::hypot(f->x, f->y) < 0.05) break;
@@ -215,6 +215,23 @@ std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, do
   }
   if (!fit) return std::nullopt;
   return fit->value;
+}
+
+}  // namespace
+
+std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign) {
+  return fit_apex(samples, radius, sign, true);
+}
+
+std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign,
+                                      const Eigen::Vector2d& along, double stretch) {
+  if (!(stretch >= 1.0) || !along.allFinite() || !(along.norm() > 0.0)) return std::nullopt;
+  const Eigen::Vector2d a = along.normalized();
+  std::vector<ApexSample> disc;
+  disc.reserve(samples.size());
+  for (const auto& s : samples)
+    disc.push_back({(a.x() * s.x + a.y() * s.y) / stretch, -a.y() * s.x + a.x() * s.y, s.deviation});
+  return fit_apex(disc, radius, sign, stretch == 1.0);
 }
 
 }  // namespace dentmark::detect

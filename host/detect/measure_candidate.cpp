@@ -1,6 +1,7 @@
 #include "measure_candidate.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -260,12 +261,15 @@ double paraboloid_height(const HeightMap& map, const Box& box, const LocalDeviat
 }
 
 // The apex height from the scan's own samples within 'rad' of the peak (apex_fit.h).
+// The window is a disc of 'rad', or for a long apex an ellipse 'stretch' times as long
+// along 'along'.
 std::optional<double> sampled_apex_height(const CandidateScene& scene, const LocalReference& reference,
-                                          std::int32_t peak, double rad, double sign) {
+                                          std::int32_t peak, double rad, double sign,
+                                          const Eigen::Vector2d& along, double stretch) {
   const HeightMap& map = scene.map;
   const int cols = map.cols;
   const double pu = map.u[static_cast<std::size_t>(peak)], pv = map.v[static_cast<std::size_t>(peak)];
-  const int rp = static_cast<int>(std::ceil(rad / map.pixel)) + 1;
+  const int rp = static_cast<int>(std::ceil(stretch * rad / map.pixel)) + 1;
   std::vector<Eigen::Vector3d> pts;
   std::vector<ApexSample> near;
   for (int r = std::max(0, peak / cols - rp); r <= std::min(map.rows - 1, peak / cols + rp); ++r)
@@ -280,7 +284,45 @@ std::optional<double> sampled_apex_height(const CandidateScene& scene, const Loc
         near.push_back({q.x() - pu, q.y() - pv, (q.z() - refw) * map.cos_tilt[k]});
       }
     }
-  return fit_apex_height(near, rad, sign);
+  return stretch > 1.0 ? fit_apex_height(near, rad, sign, along, stretch) : fit_apex_height(near, rad, sign);
+}
+
+// The apex window's shape from the half-height region's spread: a long region (a
+// crease-shaped dent) gets an ellipse its own width across, at most kMaxStretch times as
+// long; anything rounder the disc of its area.
+struct ApexWindow {
+  double radius = 0.0, stretch = 1.0;
+  Eigen::Vector2d along = Eigen::Vector2d::UnitX();
+};
+
+ApexWindow apex_window(const HeightMap& map, const std::vector<std::int32_t>& half, double half_radius,
+                       double min_radius) {
+  constexpr double kLong = 2.0;  // semi-axes further apart than this: an ellipse
+  constexpr double kMaxStretch = 4.0;
+  ApexWindow w;
+  w.radius = std::max(half_radius, min_radius);
+  // Pixel centres (the region may hold empty pixels between samples).
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (auto k : half) mean += Eigen::Vector2d(k % map.cols, k / map.cols);
+  mean /= static_cast<double>(half.size());
+  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
+  for (auto k : half) {
+    const Eigen::Vector2d d = Eigen::Vector2d(k % map.cols, k / map.cols) - mean;
+    spread += d * d.transpose();
+  }
+  // Plus a pixel's own extent, so that a line one pixel wide has a width.
+  spread = spread / static_cast<double>(half.size()) + Eigen::Matrix2d::Identity() / 12.0;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(spread);
+  // A uniform ellipse of semi-axes a, b has variances a²/4, b²/4.
+  const double across = 2.0 * std::sqrt(eig.eigenvalues()(0)) * map.pixel,
+               along = 2.0 * std::sqrt(eig.eigenvalues()(1)) * map.pixel;
+  if (along > kLong * across) {
+    w.radius = std::max(across, min_radius);
+    w.stretch = std::clamp(along / w.radius, 1.0, kMaxStretch);
+    // Map columns are u, rows v.
+    w.along = eig.eigenvectors().col(1);
+  }
+  return w;
 }
 
 }  // namespace
@@ -315,10 +357,11 @@ Measurement measure_candidate(const CandidateScene& scene, const std::vector<std
   m.height = paraboloid_height(map, box, dev, m.peak, m.peak_deviation,
                                std::max(1.5 * h, 0.5 * m.half_radius), scene.coarse);
   bool apex_fitted = false;
-  if (!scene.coarse || m.half_radius >= 2.5 * scene.spacing)
-    if (const auto apex =
-            sampled_apex_height(scene, reference, m.peak, std::max(m.half_radius, 2.5 * scene.spacing), sign))
+  if (!scene.coarse || m.half_radius >= 2.5 * scene.spacing) {
+    const ApexWindow w = apex_window(map, half, m.half_radius, 2.5 * scene.spacing);
+    if (const auto apex = sampled_apex_height(scene, reference, m.peak, w.radius, sign, w.along, w.stretch))
       m.height = *apex, apex_fitted = true;
+  }
   // Position: the deviation-weighted centre of the half-height region, on the surface.
   double ws = 0.0;
   for (auto k : half) {

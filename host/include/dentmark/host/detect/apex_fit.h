@@ -42,4 +42,12 @@ struct ApexSample {
 // fewer than 12 samples or a degenerate fit.
 std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign);
 
+// The same over an ellipse for a long defect (a crease-shaped dent): semi-axes 'radius'
+// across and stretch × radius along the unit vector 'along'. A disc of the half-height
+// area's radius reaches past a 6 mm wide trough's sides onto the panel, and read a
+// 40 x 6 mm crease 22-28 % short; the ellipse keeps to its floor. The samples are
+// stretched to a disc and fitted as above, without the cone model (round apexes only).
+std::optional<double> fit_apex_height(const std::vector<ApexSample>& samples, double radius, double sign,
+                                      const Eigen::Vector2d& along, double stretch);
+
 }  // namespace dentmark::detect
