@@ -267,6 +267,12 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   cv::Mat octree_px(rows, cols, CV_8U, cv::Scalar(0));
   for (const long k : group_pixels) octree_px.data[k] = 255;
   octree_px &= ~hole_zone;
+  // ... or the reference's fold lines (a character line's rounding, which the fits from
+  // either side leave: reference_surface.h), so that the line is one design feature.
+  cv::Mat fold_px(rows, cols, CV_8U, cv::Scalar(0));
+  if (const auto& folds = reference.fold_lines(); !folds.empty())
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+      if (folds[static_cast<std::size_t>(k)] && !hole_zone.data[k]) octree_px.data[k] = fold_px.data[k] = 255;
   cv::Mat any = cand | octree_px;
   const cv::Mat not_surface = any | spike;                       // left out of the normals' plane fits
   const cv::Mat not_ring = not_surface | edge_zone | hole_zone;  // and of the local references
@@ -292,6 +298,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   for (const Candidate& comp : comps)
     if (!comp.pixels.empty() && design_reason(comp.shape, cfg))
       for (auto k : comp.pixels) design.data[k] = 255;
+  design |= fold_px;  // a fold line is a design feature wherever it shows, even in pieces
   const cv::Mat near_design = design_surroundings(design, h);
   const auto reason_for_design = [&](const Candidate& comp) -> const char* {
     if (const char* why = design_reason(comp.shape, cfg)) return why;

@@ -129,8 +129,7 @@ class LocalReference {
   // The reference height w at map point (pu, pv), which lies in pixel k.
   double at(double pu, double pv, std::size_t k) const {
     if (!local_) return scene_.ref[k];
-    return on_global_ ? scene_.reference.height_at(pu, pv) + basis(pu, pv).dot(quad_off_)
-                      : basis(pu, pv).dot(quad_);
+    return on_global_ ? global_at(pu, pv, k) + basis(pu, pv).dot(quad_off_) : basis(pu, pv).dot(quad_);
   }
 
  private:
@@ -139,6 +138,16 @@ class LocalReference {
     Vector6d b;
     b << 1, x, y, x * x, x * y, y * y;
     return b;
+  }
+
+  // The global reference at a point of pixel k: the pixel's own height (beside a fold
+  // it takes the fits from the pixel's side, which the blend of tile fits does not:
+  // reference_surface.h), moved by the blend's slope within the pixel.
+  double global_at(double pu, double pv, std::size_t k) const {
+    const HeightMap& map = scene_.map;
+    const double ref = scene_.ref[k];
+    if (pu == map.u[k] && pv == map.v[k]) return ref;
+    return ref + scene_.reference.height_at(pu, pv) - scene_.reference.height_at(map.u[k], map.v[k]);
   }
 
   const CandidateScene& scene_;

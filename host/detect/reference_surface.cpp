@@ -130,6 +130,7 @@ ReferenceSurface::Moments ReferenceSurface::window_at(int tx, int ty, int radius
 ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
   double whole = 0.0, half = 0.0;
   Quadratic q = solve(window_at(tx, ty, radius_), tx, ty, whole);
+  const double whole_ms = whole;
   // (Tried everywhere: gated to slopes over 0.3, 2 of 501 door defects were lost.)
   if (radius_ >= 2 && q.ok) {
     Quadratic small = solve(window_at(tx, ty, radius_ / 2), tx, ty, half);
@@ -149,6 +150,7 @@ ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
       }
     }
   }
+  q.whole_mean_square = whole_ms;  // windows of one size compare (fold_pass.cpp)
   return q;
 }
 
@@ -202,6 +204,7 @@ ReferenceSurface::Quadratic ReferenceSurface::solve(const Moments& win, int tx, 
   }
   // At the least-squares solution Σ ω (z - f)² = Σ ω z² - c . rhs.
   mean_square = q.ok ? std::max(0.0, win.zz - q.c.dot(rhs)) / w0 : 0.0;
+  q.mean_square = mean_square, q.weight = w0;
   return q;
 }
 
@@ -346,6 +349,8 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
         changed[static_cast<std::size_t>(ty) * tiles_x_ + tx] = differs;
       }
     if (std::none_of(changed.begin(), changed.end(), [](std::uint8_t b) { return b != 0; })) return ref_;
+    // The blend as it was before the last fold pass, which is redone from it below.
+    for (const auto& [k, plain] : unfolded_) ref_[k] = plain;
   } else {
     tiles_.resize(tiles);
     fits_.resize(tiles);
@@ -388,6 +393,7 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
     }
 #pragma omp parallel for schedule(dynamic, 4)
   for (std::size_t i = 0; i < spans.size(); ++i) blend(spans[i].ty, spans[i].tx0, spans[i].tx1);
+  fold_pass();
   return ref_;
 }
 

@@ -11,6 +11,8 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "dentmark/host/detect/height_map.h"
@@ -33,6 +35,10 @@ class ReferenceSurface {
   // The last fit's heights per pixel (as fit() returned them).
   const std::vector<float>& heights() const { return ref_; }
 
+  // Per pixel, non-zero on the last fit's fold lines: where no fit from either side
+  // follows the pixels around (the fold's rounding). Empty where the map has no fold.
+  const std::vector<std::uint8_t>& fold_lines() const { return fold_lines_; }
+
  private:
   // Moments of a tile or window: Σ ω x^a y^b (a + b <= 4) and Σ ω z x^a y^b (a + b <= 2)
   // in coordinates scaled to about [-1, 1].
@@ -46,6 +52,13 @@ class ReferenceSurface {
     bool ok = false;
     double cu = 0.0, cv = 0.0;                            // the centre (map coordinates, m)
     Eigen::Matrix<double, 6, 1> c = decltype(c)::Zero();  // 1, x, y, x², xy, y²
+    double mean_square = 0.0;                             // the window's weighted residual
+    double whole_mean_square = 0.0;                       // the same of the whole window's fit
+    double weight = 0.0;                                  // the window's Σ ω
+    double at(double u, double v, double scale) const {
+      const double x = (u - cu) * scale, y = (v - cv) * scale;
+      return c(0) + c(1) * x + c(2) * y + c(3) * x * x + c(4) * x * y + c(5) * y * y;
+    }
   };
 
   Moments tile_moments(int tx, int ty, const std::vector<float>& weights) const;
@@ -57,6 +70,28 @@ class ReferenceSurface {
   // weighted mean squared residual.
   Quadratic solve(const Moments& win, int tx, int ty, double& mean_square) const;
   void blend(int ty, int tx0, int tx1);  // the pixels of tiles [tx0, tx1) of tile row ty
+  // Beside a sharp fold (a character line) every window across it leaves a band as wide
+  // as itself; there the pixels take the fits of windows beside them (fold_pass.cpp).
+  static constexpr int kCandidates = 9;  // the eight side windows and the pixel's own blend
+  struct FoldPixel {
+    std::size_t k = 0;
+    float share = 0.0f;
+    float height[kCandidates];  // NaN: no clean candidate
+    float weight[kCandidates];
+    bool evidence = false;
+    float fit_error = 0.0f;  // the best candidate's mean squared residual around (with evidence)
+    float spread = 0.0f;     // the clean candidates' largest difference at the pixel
+  };
+  void fold_pass();
+  // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
+  std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
+  void fill_fold_weights(std::vector<FoldPixel>& pixels) const;
+  void mark_fold_lines(const std::vector<FoldPixel>& pixels);
+  // How far the fold pass takes each tile from its own fit (0: not at all).
+  std::vector<float> fold_shares() const;
+  // The blend, at pixel (r, c), of the fits of the tiles (dx, dy) tiles away from its
+  // four nearest, and of their windows' mean squares; false where one is missing.
+  bool shifted_blend(int r, int c, int dx, int dy, double& height, double& mean_square) const;
 
   const HeightMap& map_;
   int tile_ = 4, radius_ = 1;  // tile side (pixels); window half-side (tiles)
@@ -67,6 +102,9 @@ class ReferenceSurface {
   std::vector<Quadratic> fits_;
   std::vector<float> weights_;  // of the last fit
   std::vector<float> ref_;
+  // The blended heights of the pixels the last fold pass changed, to restore first.
+  std::vector<std::pair<std::size_t, float>> unfolded_;
+  std::vector<std::uint8_t> fold_lines_;
 };
 
 }  // namespace dentmark::detect

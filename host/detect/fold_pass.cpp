@@ -1,0 +1,326 @@
+// The reference surface beside a sharp fold (a character line, 0.2 rad over a 2 mm
+// radius). Every window across the fold fits one quadratic to both of its sides and
+// leaves a band of deviation as wide as itself, where dents and bumps 15-30 mm from the
+// line became part of the line (6 of 35 found: an independent generator's hoods).
+//
+// A generalised Kuwahara filter over the tile fits: where a tile's own window fits
+// clearly worse than a window beside it, each of its pixels takes the fits of the
+// windows shifted by the window's half-side in the eight directions, those that fit
+// their own windows cleanly, weighted by how well they follow the pixels around it.
+// A window that holds the pixel and fits cleanly lies on the pixel's side of the fold,
+// and a fit from the other side is far off the pixels next to it (0.2 rad x 2 mm =
+// 0.4 mm), so the band narrows to the fold's rounding. A defect cannot choose its own
+// reference this way: the clean windows agree with each other within micrometres
+// wherever only one side is in reach.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "dentmark/host/detect/reference_surface.h"
+
+namespace dentmark::detect {
+namespace {
+
+// A tile's window's mean square over the best window beside it beyond which its window
+// holds a fold. Noise gives ratios within a few per cent of 1 (windows of thousands of
+// pixels); a window across a 0.2 rad fold, tens. Its fit leaves a band that reaches a
+// tile further than the windows flagged so (the tile's own blend stays a candidate, so
+// where it follows the pixels it stays): the tiles around a flagged one are folded too.
+constexpr double kFoldRatio = 1.2;
+constexpr double kFloor = 4e-12;
+// A side window is clean within this factor of the best one at the pixel.
+constexpr double kClean = 2.0;
+// The clean windows' fits are weighted by exp(-kSharpness (e / e_min - 1)), e the mean
+// squared residual over the (2 kEvidence + 1)² pixels around.
+constexpr double kSharpness = 3.0;
+constexpr int kEvidence = 2;
+// A side window this much emptier than the tile's own (the map's edge) does not count.
+constexpr double kMinWeight = 0.9;
+
+// The least difference in slope (rad) between the windows on either side of a fold.
+constexpr double kMinJump = 0.04;
+// The steepest tile fit (to the map plane) a fold is looked for at: 0.5, 27 degrees.
+constexpr double kMaxSlope = 0.5;
+// A pixel whose best candidate leaves this many times the typical mean square around it
+// is on the fold's line (rms 3 x the noise; a pixel two from a 0.2 rad fold, 50 x).
+constexpr double kLineError = 9.0;
+// ... and where the candidates weighted over kLineWeight disagree by this many times the
+// noise: on a defect every fit is far off, but those that follow the pixels around it
+// come from its side of the fold and agree; across the fold's line those of both sides
+// follow it equally badly.
+constexpr double kLineSpread = 4.0;
+constexpr float kLineWeight = 0.1f;
+// Pixels without evidence take it from pixels at most this many rings away.
+constexpr int kFillRings = 24;
+
+constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+
+}  // namespace
+
+std::array<double, 2> ReferenceSurface::slope_at(const Quadratic& q, double u, double v) const {
+  const double x = (u - q.cu) * local_scale_, y = (v - q.cv) * local_scale_;
+  const auto& c = q.c;
+  return {(c(1) + 2.0 * c(3) * x + c(4) * y) * local_scale_,
+          (c(2) + c(4) * x + 2.0 * c(5) * y) * local_scale_};
+}
+
+std::vector<float> ReferenceSurface::fold_shares() const {
+  std::vector<float> share(fits_.size(), 0.0f);
+  std::vector<std::uint8_t> flagged(fits_.size(), 0);
+  const int s = radius_;
+  bool any = false;
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      const Quadratic& own = fits_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+      // Not where the panel is steep to the map: there the window's own misfit changes
+      // fast from tile to tile (a chart's ends, 30-55 degrees off its axis), and half and
+      // quarter windows follow the panel (reference_surface.cpp).
+      if (!own.ok || std::hypot(own.c(1), own.c(2)) * local_scale_ > kMaxSlope) continue;
+      // A fold: the windows on both sides of the tile fit better than its own, and
+      // their slopes, carried to its centre, differ by the fold's angle. A panel that
+      // curves faster and faster one way (a fender's side, a chart's ends) also has
+      // windows that fit better than the one across (partial ones at its edge), but
+      // their slopes agree within 0.02 (measured at 0.25 m radius, +-55 degrees); a
+      // 0.1 rad fold's differ by 0.05-0.1, a 0.2 rad one's by more.
+      bool fold = false;
+      for (int d = 0; d < 8 && !fold; d += 2) {
+        const int ax = tx + s * kDirections[d][0], ay = ty + s * kDirections[d][1];
+        const int bx = tx + s * kDirections[d + 1][0], by = ty + s * kDirections[d + 1][1];
+        if (ax < 0 || ay < 0 || ax >= tiles_x_ || ay >= tiles_y_ || bx < 0 || by < 0 || bx >= tiles_x_ ||
+            by >= tiles_y_)
+          continue;
+        const Quadratic& A = fits_[static_cast<std::size_t>(ay) * tiles_x_ + ax];
+        const Quadratic& B = fits_[static_cast<std::size_t>(by) * tiles_x_ + bx];
+        if (!A.ok || !B.ok || A.weight < kMinWeight * own.weight || B.weight < kMinWeight * own.weight)
+          continue;
+        if (!(own.whole_mean_square + kFloor >
+              kFoldRatio * (std::max(A.whole_mean_square, B.whole_mean_square) + kFloor)))
+          continue;
+        const std::array<double, 2> ga = slope_at(A, own.cu, own.cv), gb = slope_at(B, own.cu, own.cv);
+        fold = std::hypot(ga[0] - gb[0], ga[1] - gb[1]) > kMinJump;
+      }
+      flagged[static_cast<std::size_t>(ty) * tiles_x_ + tx] = fold;
+      any = any || fold;
+    }
+  if (!any) return share;
+  // The band reaches as far as the windows across the fold: the window's half-side.
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx)
+      if (flagged[static_cast<std::size_t>(ty) * tiles_x_ + tx])
+        for (int y = std::max(0, ty - s); y <= std::min(tiles_y_ - 1, ty + s); ++y)
+          for (int x = std::max(0, tx - s); x <= std::min(tiles_x_ - 1, tx + s); ++x)
+            share[static_cast<std::size_t>(y) * tiles_x_ + x] = 1.0f;
+  return share;
+}
+
+bool ReferenceSurface::shifted_blend(int r, int c, int dx, int dy, double& height,
+                                     double& mean_square) const {
+  const int T = tile_;
+  const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
+  const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
+  const double ay = fy - iy, ax = fx - ix;
+  const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+  double h = 0.0, ms = 0.0, ws = 0.0;
+  for (int n = 0; n < 4; ++n) {
+    const int ny = std::clamp(iy + n / 2, 0, tiles_y_ - 1) + dy,
+              nx = std::clamp(ix + n % 2, 0, tiles_x_ - 1) + dx;
+    if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) return false;
+    const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+    if (!q.ok) return false;
+    // A window beside the map's or the panel's edge, mostly empty, fits its few pixels
+    // closely and extrapolates wildly.
+    const Quadratic& base = fits_[static_cast<std::size_t>(ny - dy) * tiles_x_ + (nx - dx)];
+    if ((dx != 0 || dy != 0) && q.weight < kMinWeight * base.weight) return false;
+    const double w = (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) + 1e-9;
+    h += w * q.at(map_.u[k], map_.v[k], local_scale_);
+    ms += w * q.mean_square;
+    ws += w;
+  }
+  height = h / ws, mean_square = ms / ws;
+  return true;
+}
+
+void ReferenceSurface::fold_pass() {
+  unfolded_.clear();
+  fold_lines_.clear();
+  const std::vector<float> share = fold_shares();
+  std::vector<std::uint8_t> folded(share.size(), 0);
+  bool any = false;
+  for (std::size_t t = 0; t < share.size(); ++t) folded[t] = share[t] > 0.0f, any = any || folded[t];
+  if (!any) return;
+  // A pixel blends the shares of its four nearest tiles: the tiles around a folded one.
+  std::vector<int> tiles;
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      bool near = false;
+      for (int y = std::max(0, ty - 1); y <= std::min(tiles_y_ - 1, ty + 1); ++y)
+        for (int x = std::max(0, tx - 1); x <= std::min(tiles_x_ - 1, tx + 1); ++x)
+          near = near || folded[static_cast<std::size_t>(y) * tiles_x_ + x];
+      if (near) tiles.push_back(ty * tiles_x_ + tx);
+    }
+  const int T = tile_, s = radius_, e = kEvidence;
+  const int side = T + 2 * e;  // the tile and the pixels its evidence reaches
+  // Per pixel of those tiles: its share and its candidates (the eight side windows' fits
+  // and its own blend), with their weights where the pixels around gave evidence.
+  std::vector<std::vector<FoldPixel>> found(tiles.size());
+#pragma omp parallel
+  {
+    std::vector<double> f(static_cast<std::size_t>(kCandidates * side * side)), ms(f.size());
+    std::vector<std::uint8_t> have(f.size());
+#pragma omp for schedule(dynamic, 4)
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+      const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
+      const int r0 = ty * T - e, c0 = tx * T - e;
+      for (int d = 0; d < kCandidates; ++d)
+        for (int y = 0; y < side; ++y)
+          for (int x = 0; x < side; ++x) {
+            const int r = r0 + y, c = c0 + x;
+            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
+            const bool inside = r >= 0 && c >= 0 && r < map_.rows && c < map_.cols &&
+                                map_.weight[static_cast<std::size_t>(r) * map_.cols + c] > 0.0f;
+            if (d < 8)
+              have[j] =
+                  inside && shifted_blend(r, c, s * kDirections[d][0], s * kDirections[d][1], f[j], ms[j]);
+            else {  // its own blend, as blend() made it
+              have[j] = inside && shifted_blend(r, c, 0, 0, f[j], ms[j]);
+              if (have[j])
+                f[j] = ref_[static_cast<std::size_t>(r) * map_.cols + c], have[j] = std::isfinite(f[j]);
+            }
+          }
+      for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r)
+        for (int c = tx * T; c < std::min(map_.cols, (tx + 1) * T); ++c) {
+          const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+          if (!(map_.weight[k] > 0.0f) || !std::isfinite(ref_[k])) continue;
+          // The pixel's share: the bilinear blend of its four nearest tiles'.
+          const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
+          const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
+          const double ay = fy - iy, ax = fx - ix;
+          double a = 0.0;
+          for (int n = 0; n < 4; ++n)
+            a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
+                 share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
+                       std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
+          if (!(a > 0.0)) continue;
+          const int y = r - r0, x = c - c0;
+          FoldPixel px;
+          px.k = k, px.share = static_cast<float>(a);
+          double best_ms = std::numeric_limits<double>::infinity();
+          for (int d = 0; d < kCandidates; ++d) {
+            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
+            px.height[d] = have[j] ? static_cast<float>(f[j]) : std::numeric_limits<float>::quiet_NaN();
+            if (have[j]) best_ms = std::min(best_ms, ms[j]);
+          }
+          // Evidence: the clean windows' residuals over the pixels around that the fit
+          // weighs (a defect, left out of the fit, never chooses its own reference).
+          double resid[kCandidates];
+          double best_resid = std::numeric_limits<double>::infinity();
+          for (int d = 0; d < kCandidates; ++d) {
+            resid[d] = std::numeric_limits<double>::infinity();
+            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
+            if (!have[j] || ms[j] + kFloor > kClean * (best_ms + kFloor)) {
+              px.height[d] = std::numeric_limits<float>::quiet_NaN();  // not clean: no candidate
+              continue;
+            }
+            double sum = 0.0, wsum = 0.0;
+            for (int yy = y - e; yy <= y + e; ++yy)
+              for (int xx = x - e; xx <= x + e; ++xx) {
+                const std::size_t jj = static_cast<std::size_t>((d * side + yy) * side + xx);
+                if (!have[jj]) continue;
+                const std::size_t kk = static_cast<std::size_t>(r0 + yy) * map_.cols + (c0 + xx);
+                const double wk = map_.weight[kk], dz = map_.w[kk] - f[jj];
+                sum += wk * dz * dz, wsum += wk;
+              }
+            if (wsum > 0.0) resid[d] = sum / wsum, best_resid = std::min(best_resid, resid[d]);
+          }
+          px.evidence = std::isfinite(best_resid);
+          if (px.evidence) px.fit_error = static_cast<float>(best_resid);
+          for (int d = 0; d < kCandidates; ++d)
+            px.weight[d] = px.evidence && std::isfinite(resid[d])
+                               ? static_cast<float>(
+                                     std::exp(-kSharpness * (resid[d] - best_resid) / (best_resid + kFloor)))
+                               : 0.0f;
+          // How far the candidates that follow the pixels around about as well as the
+          // best differ: apart only where fits from both sides do (the fold's line).
+          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+          for (int d = 0; d < kCandidates; ++d)
+            if (px.weight[d] > kLineWeight && std::isfinite(px.height[d]))
+              lo = std::min(lo, px.height[d]), hi = std::max(hi, px.height[d]);
+          px.spread = hi > lo ? hi - lo : 0.0f;
+          found[i].push_back(px);
+        }
+    }
+  }
+  std::vector<FoldPixel> pixels;
+  for (const auto& list : found) pixels.insert(pixels.end(), list.begin(), list.end());
+  mark_fold_lines(pixels);
+  fill_fold_weights(pixels);
+  for (const FoldPixel& px : pixels) {
+    double h = 0.0, ws = 0.0;
+    for (int d = 0; d < kCandidates; ++d)
+      if (px.weight[d] > 0.0f && std::isfinite(px.height[d]))
+        h += px.weight[d] * px.height[d], ws += px.weight[d];
+    if (!(ws > 0.0)) continue;
+    unfolded_.emplace_back(px.k, ref_[px.k]);
+    ref_[px.k] = static_cast<float>((1.0 - px.share) * ref_[px.k] + px.share * h / ws);
+  }
+}
+
+// The fold's own line: pixels whose best candidate leaves far more around them than
+// the fold region's typical pixel (its noise), there being no side to take.
+void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel>& pixels) {
+  std::vector<float> errors;
+  for (const FoldPixel& px : pixels)
+    if (px.evidence) errors.push_back(px.fit_error);
+  if (errors.empty()) return;
+  auto middle = errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2);
+  std::nth_element(errors.begin(), middle, errors.end());
+  const double typical = *middle;
+  fold_lines_.assign(map_.size(), 0);
+  for (const FoldPixel& px : pixels)
+    if (px.evidence && px.fit_error > kLineError * typical + kFloor &&
+        px.spread > kLineSpread * std::sqrt(typical + kFloor))
+      fold_lines_[px.k] = 255;
+}
+
+// Pixels without evidence (a defect and the margin around it, left out of the fit; the
+// fold's own line, once found) take the weights of the nearest pixels with evidence,
+// ring by ring: the side of the fold they lie on.
+void ReferenceSurface::fill_fold_weights(std::vector<FoldPixel>& pixels) const {
+  std::vector<std::int32_t> slot(map_.size(), -1);
+  for (std::size_t i = 0; i < pixels.size(); ++i) slot[pixels[i].k] = static_cast<std::int32_t>(i);
+  std::vector<std::size_t> waiting;
+  for (std::size_t i = 0; i < pixels.size(); ++i)
+    if (!pixels[i].evidence) waiting.push_back(i);
+  for (int ring = 0; ring < kFillRings && !waiting.empty(); ++ring) {
+    std::vector<std::pair<std::size_t, std::array<float, kCandidates>>> filled;
+    std::vector<std::size_t> still;
+    for (const std::size_t i : waiting) {
+      const int r = static_cast<int>(pixels[i].k / map_.cols), c = static_cast<int>(pixels[i].k % map_.cols);
+      std::array<float, kCandidates> sum{};
+      int n = 0;
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = r + dr, cc = c + dc;
+          if (rr < 0 || cc < 0 || rr >= map_.rows || cc >= map_.cols) continue;
+          const std::int32_t j = slot[static_cast<std::size_t>(rr) * map_.cols + cc];
+          if (j < 0 || !pixels[static_cast<std::size_t>(j)].evidence) continue;
+          for (int d = 0; d < kCandidates; ++d) sum[d] += pixels[static_cast<std::size_t>(j)].weight[d];
+          ++n;
+        }
+      if (n > 0)
+        filled.emplace_back(i, sum);
+      else
+        still.push_back(i);
+    }
+    // Taken over after the ring: the result does not depend on the order within it.
+    for (const auto& [i, sum] : filled) {
+      std::copy(sum.begin(), sum.end(), pixels[i].weight);
+      pixels[i].evidence = true;
+    }
+    waiting.swap(still);
+  }
+}
+
+}  // namespace dentmark::detect
