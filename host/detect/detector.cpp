@@ -240,6 +240,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const cv::Mat interior = (weight > 0.0f) & ~edge_zone;
   const std::vector<int> scales = detection_scales(h);
   ReferenceSurface reference(map, cfg.reference_window);
+  reference.look_for_folds(chart_w.squaredNorm() == 0.0);  // not on a chart (reference_surface.h)
   Deviation deviation =
       deviation_from_reference(map, reference, interior, scales, cfg, chart_w.squaredNorm() > 0.0);
   st.deviation_noise = deviation.noise;

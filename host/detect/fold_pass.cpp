@@ -145,6 +145,7 @@ bool ReferenceSurface::shifted_blend(int r, int c, int dx, int dy, double& heigh
 void ReferenceSurface::fold_pass() {
   unfolded_.clear();
   fold_lines_.clear();
+  if (!look_for_folds_) return;
   const std::vector<float> share = fold_shares();
   std::vector<std::uint8_t> folded(share.size(), 0);
   bool any = false;

@@ -32,6 +32,11 @@ class ReferenceSurface {
   // the four nearest tile fits, as at a pixel. NaN where no fit is near.
   double height_at(double u, double v) const;
 
+  // Whether fits look for sharp folds (on by default). A chart of a panel that wraps round
+  // (a tube of 0.15 m radius) turns too fast for the test that tells a fold from a curve:
+  // the fits on either side of a tile disagree in slope there too.
+  void look_for_folds(bool on) { look_for_folds_ = on; }
+
   // The last fit's heights per pixel (as fit() returned them).
   const std::vector<float>& heights() const { return ref_; }
 
@@ -105,6 +110,7 @@ class ReferenceSurface {
   // The blended heights of the pixels the last fold pass changed, to restore first.
   std::vector<std::pair<std::size_t, float>> unfolded_;
   std::vector<std::uint8_t> fold_lines_;
+  bool look_for_folds_ = true;
 };
 
 }  // namespace dentmark::detect
