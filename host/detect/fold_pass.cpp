@@ -52,6 +52,8 @@ constexpr double kLineError = 9.0;
 // follow it equally badly.
 constexpr double kLineSpread = 4.0;
 constexpr float kLineWeight = 0.1f;
+// The largest tile (pixels) plus its evidence margins the pass handles.
+constexpr int kMaxSide = 64;
 // Pixels without evidence take it from pixels at most this many rings away.
 constexpr int kFillRings = 24;
 
@@ -162,47 +164,109 @@ void ReferenceSurface::fold_pass() {
       if (near) tiles.push_back(ty * tiles_x_ + tx);
     }
   const int T = tile_, s = radius_, e = kEvidence;
-  const int side = T + 2 * e;  // the tile and the pixels its evidence reaches
+  const int side = T + 2 * e;   // the tile and the pixels its evidence reaches
+  if (side > kMaxSide) return;  // (tiles are window / 8: a 64 mm window of 1 mm pixels is 8)
   // Per pixel of those tiles: its share and its candidates (the eight side windows' fits
   // and its own blend), with their weights where the pixels around gave evidence.
   std::vector<std::vector<FoldPixel>> found(tiles.size());
 #pragma omp parallel
   {
     std::vector<double> f(static_cast<std::size_t>(kCandidates * side * side)), ms(f.size());
-    std::vector<std::uint8_t> have(f.size());
+    std::vector<std::uint8_t> have(f.size()), needed(static_cast<std::size_t>(side * side));
+    std::vector<double> shares(static_cast<std::size_t>(T * T));
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < tiles.size(); ++i) {
       const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
       const int r0 = ty * T - e, c0 = tx * T - e;
-      for (int d = 0; d < kCandidates; ++d)
-        for (int y = 0; y < side; ++y)
-          for (int x = 0; x < side; ++x) {
-            const int r = r0 + y, c = c0 + x;
-            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
-            const bool inside = r >= 0 && c >= 0 && r < map_.rows && c < map_.cols &&
-                                map_.weight[static_cast<std::size_t>(r) * map_.cols + c] > 0.0f;
-            if (d < 8)
-              have[j] =
-                  inside && shifted_blend(r, c, s * kDirections[d][0], s * kDirections[d][1], f[j], ms[j]);
-            else {  // its own blend, as blend() made it
-              have[j] = inside && shifted_blend(r, c, 0, 0, f[j], ms[j]);
-              if (have[j])
-                f[j] = ref_[static_cast<std::size_t>(r) * map_.cols + c], have[j] = std::isfinite(f[j]);
-            }
+      // The tile's pixels' shares (the bilinear blend of their four nearest tiles'), and
+      // the pixels whose candidates their evidence needs.
+      std::fill(needed.begin(), needed.end(), 0);
+      bool any_share = false;
+      for (int y = 0; y < T; ++y)
+        for (int x = 0; x < T; ++x) {
+          const int r = ty * T + y, c = tx * T + x;
+          double a = 0.0;
+          if (r < map_.rows && c < map_.cols) {
+            const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
+            const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
+            const double ay = fy - iy, ax = fx - ix;
+            for (int n = 0; n < 4; ++n)
+              a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
+                   share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
+                         std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
           }
+          shares[static_cast<std::size_t>(y * T + x)] = a;
+          if (a > 0.0) {
+            any_share = true;
+            for (int yy = y; yy <= y + 2 * e; ++yy)
+              for (int xx = x; xx <= x + 2 * e; ++xx) needed[static_cast<std::size_t>(yy * side + xx)] = 1;
+          }
+        }
+      if (!any_share) continue;
+      // Every candidate over the tile and its margin: the bilinear blend of the fits of
+      // the tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do.
+      int col_tile[kMaxSide], row_tile[kMaxSide];
+      double col_frac[kMaxSide], row_frac[kMaxSide];
+      for (int x = 0; x < side; ++x) {
+        const double fx = (c0 + x + 0.5) / T - 0.5;
+        col_tile[x] = static_cast<int>(std::floor(fx)), col_frac[x] = fx - col_tile[x];
+        const double fy = (r0 + x + 0.5) / T - 0.5;
+        row_tile[x] = static_cast<int>(std::floor(fy)), row_frac[x] = fy - row_tile[x];
+      }
+      for (int d = 0; d < kCandidates; ++d) {
+        const int dx = d < 8 ? s * kDirections[d][0] : 0, dy = d < 8 ? s * kDirections[d][1] : 0;
+        for (int y = 0; y < side; ++y) {
+          const int r = r0 + y;
+          for (int x = 0; x < side; ++x) {
+            const int c = c0 + x;
+            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
+            have[j] = 0;
+            if (!needed[static_cast<std::size_t>(y * side + x)]) continue;
+            if (r < 0 || c < 0 || r >= map_.rows || c >= map_.cols) continue;
+            const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+            if (!(map_.weight[k] > 0.0f)) continue;
+            const bool own_pixel = y >= e && y < e + T && x >= e && x < e + T;
+            if (d == 8) {  // its own blend, as blend() made it
+              f[j] = ref_[k];
+              have[j] = std::isfinite(f[j]);
+              if (have[j] && own_pixel) have[j] = shifted_blend(r, c, 0, 0, f[j], ms[j]), f[j] = ref_[k];
+              continue;
+            }
+            double h = 0.0, m = 0.0, ws = 0.0;
+            bool ok = true;
+            for (int n = 0; n < 4 && ok; ++n) {
+              const int by = std::clamp(row_tile[y] + n / 2, 0, tiles_y_ - 1),
+                        bx = std::clamp(col_tile[x] + n % 2, 0, tiles_x_ - 1);
+              const int ny = by + dy, nx = bx + dx;
+              if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) {
+                ok = false;
+                break;
+              }
+              const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+              // A window beside the map's or the panel's edge, mostly empty, fits its few
+              // pixels closely and extrapolates wildly.
+              if (!q.ok ||
+                  q.weight < kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight) {
+                ok = false;
+                break;
+              }
+              const double w =
+                  (n / 2 ? row_frac[y] : 1.0 - row_frac[y]) * (n % 2 ? col_frac[x] : 1.0 - col_frac[x]) +
+                  1e-9;
+              h += w * q.at(map_.u[k], map_.v[k], local_scale_);
+              m += w * q.mean_square;
+              ws += w;
+            }
+            if (!ok) continue;
+            f[j] = h / ws, ms[j] = m / ws, have[j] = 1;
+          }
+        }
+      }
       for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r)
         for (int c = tx * T; c < std::min(map_.cols, (tx + 1) * T); ++c) {
           const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
           if (!(map_.weight[k] > 0.0f) || !std::isfinite(ref_[k])) continue;
-          // The pixel's share: the bilinear blend of its four nearest tiles'.
-          const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
-          const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
-          const double ay = fy - iy, ax = fx - ix;
-          double a = 0.0;
-          for (int n = 0; n < 4; ++n)
-            a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
-                 share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
-                       std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
+          const double a = shares[static_cast<std::size_t>((r - ty * T) * T + (c - tx * T))];
           if (!(a > 0.0)) continue;
           const int y = r - r0, x = c - c0;
           FoldPixel px;
@@ -253,11 +317,13 @@ void ReferenceSurface::fold_pass() {
         }
     }
   }
-  std::vector<FoldPixel> pixels;
-  for (const auto& list : found) pixels.insert(pixels.end(), list.begin(), list.end());
+  std::vector<FoldPixel*> pixels;  // (pointers: the lists are large)
+  for (auto& list : found)
+    for (FoldPixel& px : list) pixels.push_back(&px);
   mark_fold_lines(pixels);
   fill_fold_weights(pixels);
-  for (const FoldPixel& px : pixels) {
+  for (const FoldPixel* p : pixels) {
+    const FoldPixel& px = *p;
     double h = 0.0, ws = 0.0;
     for (int d = 0; d < kCandidates; ++d)
       if (px.weight[d] > 0.0f && std::isfinite(px.height[d]))
@@ -270,35 +336,37 @@ void ReferenceSurface::fold_pass() {
 
 // The fold's own line: pixels whose best candidate leaves far more around them than
 // the fold region's typical pixel (its noise), there being no side to take.
-void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel>& pixels) {
+void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel*>& pixels) {
   std::vector<float> errors;
-  for (const FoldPixel& px : pixels)
-    if (px.evidence) errors.push_back(px.fit_error);
+  for (const FoldPixel* px : pixels)
+    if (px->evidence) errors.push_back(px->fit_error);
   if (errors.empty()) return;
   auto middle = errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2);
   std::nth_element(errors.begin(), middle, errors.end());
   const double typical = *middle;
   fold_lines_.assign(map_.size(), 0);
-  for (const FoldPixel& px : pixels)
-    if (px.evidence && px.fit_error > kLineError * typical + kFloor &&
-        px.spread > kLineSpread * std::sqrt(typical + kFloor))
-      fold_lines_[px.k] = 255;
+  for (const FoldPixel* px : pixels)
+    if (px->evidence && px->fit_error > kLineError * typical + kFloor &&
+        px->spread > kLineSpread * std::sqrt(typical + kFloor))
+      fold_lines_[px->k] = 255;
 }
 
 // Pixels without evidence (a defect and the margin around it, left out of the fit; the
 // fold's own line, once found) take the weights of the nearest pixels with evidence,
 // ring by ring: the side of the fold they lie on.
-void ReferenceSurface::fill_fold_weights(std::vector<FoldPixel>& pixels) const {
-  std::vector<std::int32_t> slot(map_.size(), -1);
-  for (std::size_t i = 0; i < pixels.size(); ++i) slot[pixels[i].k] = static_cast<std::int32_t>(i);
+void ReferenceSurface::fill_fold_weights(const std::vector<FoldPixel*>& pixels) const {
   std::vector<std::size_t> waiting;
   for (std::size_t i = 0; i < pixels.size(); ++i)
-    if (!pixels[i].evidence) waiting.push_back(i);
+    if (!pixels[i]->evidence) waiting.push_back(i);
+  if (waiting.empty()) return;
+  std::vector<std::int32_t> slot(map_.size(), -1);
+  for (std::size_t i = 0; i < pixels.size(); ++i) slot[pixels[i]->k] = static_cast<std::int32_t>(i);
   for (int ring = 0; ring < kFillRings && !waiting.empty(); ++ring) {
     std::vector<std::pair<std::size_t, std::array<float, kCandidates>>> filled;
     std::vector<std::size_t> still;
     for (const std::size_t i : waiting) {
-      const int r = static_cast<int>(pixels[i].k / map_.cols), c = static_cast<int>(pixels[i].k % map_.cols);
+      const int r = static_cast<int>(pixels[i]->k / map_.cols),
+                c = static_cast<int>(pixels[i]->k % map_.cols);
       std::array<float, kCandidates> sum{};
       int n = 0;
       for (int dr = -1; dr <= 1; ++dr)
@@ -306,8 +374,8 @@ void ReferenceSurface::fill_fold_weights(std::vector<FoldPixel>& pixels) const {
           const int rr = r + dr, cc = c + dc;
           if (rr < 0 || cc < 0 || rr >= map_.rows || cc >= map_.cols) continue;
           const std::int32_t j = slot[static_cast<std::size_t>(rr) * map_.cols + cc];
-          if (j < 0 || !pixels[static_cast<std::size_t>(j)].evidence) continue;
-          for (int d = 0; d < kCandidates; ++d) sum[d] += pixels[static_cast<std::size_t>(j)].weight[d];
+          if (j < 0 || !pixels[static_cast<std::size_t>(j)]->evidence) continue;
+          for (int d = 0; d < kCandidates; ++d) sum[d] += pixels[static_cast<std::size_t>(j)]->weight[d];
           ++n;
         }
       if (n > 0)
@@ -317,8 +385,8 @@ void ReferenceSurface::fill_fold_weights(std::vector<FoldPixel>& pixels) const {
     }
     // Taken over after the ring: the result does not depend on the order within it.
     for (const auto& [i, sum] : filled) {
-      std::copy(sum.begin(), sum.end(), pixels[i].weight);
-      pixels[i].evidence = true;
+      std::copy(sum.begin(), sum.end(), pixels[i]->weight);
+      pixels[i]->evidence = true;
     }
     waiting.swap(still);
   }

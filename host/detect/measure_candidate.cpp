@@ -153,12 +153,14 @@ class LocalReference {
     const double ref = scene_.ref[k];
     if (pu == map.u[k] && pv == map.v[k]) return ref;
     const double blend_here = scene_.reference.height_at(map.u[k], map.v[k]);
-    if (std::abs(ref - blend_here) < kSameHeight) return ref + scene_.reference.height_at(pu, pv) - blend_here;
+    if (std::abs(ref - blend_here) < kSameHeight)
+      return ref + scene_.reference.height_at(pu, pv) - blend_here;
     const int cols = map.cols, r = static_cast<int>(k) / cols, c = static_cast<int>(k) % cols;
     const auto slope = [&](int dr, int dc) {
       const int r0 = r - dr, c0 = c - dc, r1 = r + dr, c1 = c + dc;
       if (r0 < 0 || c0 < 0 || r1 >= map.rows || c1 >= cols) return 0.0;
-      const std::size_t a = static_cast<std::size_t>(r0 * cols + c0), b = static_cast<std::size_t>(r1 * cols + c1);
+      const std::size_t a = static_cast<std::size_t>(r0 * cols + c0),
+                        b = static_cast<std::size_t>(r1 * cols + c1);
       if (!(map.weight[a] > 0.0f && map.weight[b] > 0.0f) || !std::isfinite(scene_.ref[a]) ||
           !std::isfinite(scene_.ref[b]))
         return 0.0;

@@ -90,8 +90,8 @@ class ReferenceSurface {
   void fold_pass();
   // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
   std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
-  void fill_fold_weights(std::vector<FoldPixel>& pixels) const;
-  void mark_fold_lines(const std::vector<FoldPixel>& pixels);
+  void fill_fold_weights(const std::vector<FoldPixel*>& pixels) const;
+  void mark_fold_lines(const std::vector<FoldPixel*>& pixels);
   // How far the fold pass takes each tile from its own fit (0: not at all).
   std::vector<float> fold_shares() const;
   // The blend, at pixel (r, c), of the fits of the tiles (dx, dy) tiles away from its
