@@ -52,6 +52,8 @@ constexpr double kLineError = 9.0;
 // follow it equally badly.
 constexpr double kLineSpread = 4.0;
 constexpr float kLineWeight = 0.1f;
+// The pixel's own blend, a candidate besides the eight side windows' fits.
+constexpr int kOwn = 8;
 // The largest tile (pixels) plus its evidence margins the pass handles.
 constexpr int kMaxSide = 64;
 // Pixels without evidence take it from pixels at most this many rings away.
@@ -214,7 +216,7 @@ void ReferenceSurface::fold_pass() {
         row_tile[x] = static_cast<int>(std::floor(fy)), row_frac[x] = fy - row_tile[x];
       }
       for (int d = 0; d < kCandidates; ++d) {
-        const int dx = d < 8 ? s * kDirections[d][0] : 0, dy = d < 8 ? s * kDirections[d][1] : 0;
+        const int dx = d < kOwn ? s * kDirections[d][0] : 0, dy = d < kOwn ? s * kDirections[d][1] : 0;
         for (int y = 0; y < side; ++y) {
           const int r = r0 + y;
           for (int x = 0; x < side; ++x) {
@@ -226,7 +228,7 @@ void ReferenceSurface::fold_pass() {
             const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
             if (!(map_.weight[k] > 0.0f)) continue;
             const bool own_pixel = y >= e && y < e + T && x >= e && x < e + T;
-            if (d == 8) {  // its own blend, as blend() made it
+            if (d == kOwn) {  // its own blend, as blend() made it
               f[j] = ref_[k];
               have[j] = std::isfinite(f[j]);
               if (have[j] && own_pixel) have[j] = shifted_blend(r, c, 0, 0, f[j], ms[j]), f[j] = ref_[k];
@@ -277,8 +279,8 @@ void ReferenceSurface::fold_pass() {
             px.height[d] = have[j] ? static_cast<float>(f[j]) : std::numeric_limits<float>::quiet_NaN();
             if (have[j]) best_ms = std::min(best_ms, ms[j]);
           }
-          // Evidence: the clean windows' residuals over the pixels around that the fit
-          // weighs (a defect, left out of the fit, never chooses its own reference).
+          // Evidence: the clean windows' residuals over the pixels around (the pixel's
+          // own blend among them where its window is clean too).
           double resid[kCandidates];
           double best_resid = std::numeric_limits<double>::infinity();
           for (int d = 0; d < kCandidates; ++d) {

@@ -416,6 +416,9 @@ Measurement measure_candidate(const CandidateScene& scene, const std::vector<std
     }
     if (best > std::abs(m.height)) m.height = sign * best;
   }
+  // A candidate with no pixel measurable against a reference (spikes only, or beyond
+  // every fit) has no height: it is noise, and no NaN reaches the output.
+  if (!std::isfinite(m.height)) m.height = 0.0;
   return m;
 }
 

@@ -6,8 +6,9 @@
 //
 // Detection refits with the defect candidates left out, and only those tiles' weights
 // change: a refit redoes only the tiles whose weights changed, the fits whose window
-// holds one, and the pixels blended from those fits. Its result is the same, to the
-// last bit, as a fit from scratch.
+// holds one, and the pixels blended from those fits. Its result is the same as a fit
+// from scratch: to the last bit as a rule, within float rounding (nanometres) where the
+// integral image's changed prefix rounds a far tile's window sums differently.
 
 #include <Eigen/Core>
 #include <array>
