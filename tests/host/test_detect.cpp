@@ -386,6 +386,22 @@ double add_wall_behind(ingest::Mesh& mesh, bool floor, int n, double z = 1.5) {
   return add_seen_grid_triangles(mesh, index, n, step);
 }
 
+// A cols x rows grid of samples 'spacing' apart, 0.8 m before the sensor plus
+// height(x, y) (away from it) and 15 µm of noise, meshed.
+ingest::Mesh noisy_patch(int cols, int rows, double spacing,
+                         const std::function<double(double, double)>& height, std::uint64_t seed) {
+  ingest::Mesh patch;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1.5e-5);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const double x = c * spacing, y = r * spacing;
+      patch.vertices.emplace_back(x, y, 0.8 + height(x, y) + noise(rng));
+    }
+  add_grid_triangles(patch, rows, cols);
+  return patch;
+}
+
 TEST(Detect, ACreaseShapedDentIsReadToItsFloor) {
   // A long narrow dent (a crease from a sharp edge: 40 x 6 mm, cos² across, flat along
   // with cos² ends) and the same as a bump, at 0.4 mm and 15 µm. Their apex was fitted
@@ -408,18 +424,9 @@ TEST(Detect, ACreaseShapedDentIsReadToItsFloor) {
     }
     return z;
   };
-  ingest::Mesh patch;
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> noise(0.0, 1.5e-5);
-  const int cols = 401, rows = 251;
-  const double spacing = 0.0004;
-  for (int r = 0; r < rows; ++r)
-    for (int c = 0; c < cols; ++c) {
-      const double x = c * spacing, y = r * spacing;
-      // A dent is deeper: away from the sensor at the origin.
-      patch.vertices.emplace_back(x, y, 0.8 - crease_at(x, y) + noise(rng));
-    }
-  add_grid_triangles(patch, rows, cols);
+  // A dent is deeper: away from the sensor at the origin.
+  const ingest::Mesh patch = noisy_patch(
+      401, 251, 0.0004, [&](double x, double y) { return -crease_at(x, y); }, 11);
   const detect::Detection det = detect::detect(patch, detect::DetectConfig{});
   ASSERT_EQ(det.defects.size(), 2u);
   for (const Crease& c : creases) {
@@ -457,17 +464,7 @@ TEST(Detect, DefectsBesideASharpFoldAreFoundAndTheFoldIsNot) {
     }
     return z;  // a bump is towards the sensor at the origin: less deep
   };
-  ingest::Mesh patch;
-  std::mt19937_64 rng(17);
-  std::normal_distribution<double> noise(0.0, 1.5e-5);
-  const int cols = 601, rows = 401;
-  const double spacing = 0.0005;
-  for (int r = 0; r < rows; ++r)
-    for (int c = 0; c < cols; ++c) {
-      const double x = c * spacing, y = r * spacing;
-      patch.vertices.emplace_back(x, y, 0.8 + height_at(x, y) + noise(rng));
-    }
-  add_grid_triangles(patch, rows, cols);
+  const ingest::Mesh patch = noisy_patch(601, 401, 0.0005, height_at, 17);
   const detect::Detection det = detect::detect(patch, detect::DetectConfig{});
   EXPECT_EQ(det.defects.size(), std::size(planted));
   for (const Planted& d : planted) {
