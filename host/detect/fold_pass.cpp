@@ -119,30 +119,21 @@ std::vector<float> ReferenceSurface::fold_shares() const {
   return share;
 }
 
-bool ReferenceSurface::shifted_blend(int r, int c, int dx, int dy, double& height,
-                                     double& mean_square) const {
+bool ReferenceSurface::blended_mean_square(int r, int c, double& mean_square) const {
+  // As blend(): the fits at tiles (iy + dy, ix + dx), weighted bilinearly (+ 1e-9).
   const int T = tile_;
   const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
   const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
   const double ay = fy - iy, ax = fx - ix;
-  const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
-  double h = 0.0, ms = 0.0, ws = 0.0;
+  double ms = 0.0, ws = 0.0;
   for (int n = 0; n < 4; ++n) {
-    const int ny = std::clamp(iy + n / 2, 0, tiles_y_ - 1) + dy,
-              nx = std::clamp(ix + n % 2, 0, tiles_x_ - 1) + dx;
-    if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) return false;
-    const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+    const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
+                               std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
     if (!q.ok) return false;
-    // A window beside the map's or the panel's edge, mostly empty, fits its few pixels
-    // closely and extrapolates wildly.
-    const Quadratic& base = fits_[static_cast<std::size_t>(ny - dy) * tiles_x_ + (nx - dx)];
-    if ((dx != 0 || dy != 0) && q.weight < kMinWeight * base.weight) return false;
     const double w = (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) + 1e-9;
-    h += w * q.at(map_.u[k], map_.v[k], local_scale_);
-    ms += w * q.mean_square;
-    ws += w;
+    ms += w * q.mean_square, ws += w;
   }
-  height = h / ws, mean_square = ms / ws;
+  mean_square = ms / ws;
   return true;
 }
 
@@ -231,7 +222,7 @@ void ReferenceSurface::fold_pass() {
             if (d == kOwn) {  // its own blend, as blend() made it
               f[j] = ref_[k];
               have[j] = std::isfinite(f[j]);
-              if (have[j] && own_pixel) have[j] = shifted_blend(r, c, 0, 0, f[j], ms[j]), f[j] = ref_[k];
+              if (have[j] && own_pixel) have[j] = blended_mean_square(r, c, ms[j]);
               continue;
             }
             double h = 0.0, m = 0.0, ws = 0.0;

@@ -95,9 +95,9 @@ class ReferenceSurface {
   void mark_fold_lines(const std::vector<FoldPixel*>& pixels);
   // How far the fold pass takes each tile from its own fit (0: not at all).
   std::vector<float> fold_shares() const;
-  // The blend, at pixel (r, c), of the fits of the tiles (dx, dy) tiles away from its
-  // four nearest, and of their windows' mean squares; false where one is missing.
-  bool shifted_blend(int r, int c, int dx, int dy, double& height, double& mean_square) const;
+  // The blend, at pixel (r, c), of its four nearest tile fits' windows' mean squares;
+  // false where one of them failed.
+  bool blended_mean_square(int r, int c, double& mean_square) const;
 
   const HeightMap& map_;
   int tile_ = 4, radius_ = 1;  // tile side (pixels); window half-side (tiles)
