@@ -3,10 +3,11 @@
 // leaves a band of deviation as wide as itself, where dents and bumps 15-30 mm from the
 // line became part of the line (6 of 35 found: an independent generator's hoods).
 //
-// A generalised Kuwahara filter over the tile fits: where a tile's own window fits
-// clearly worse than a window beside it, each of its pixels takes the fits of the
-// windows shifted by the window's half-side in the eight directions, those that fit
-// their own windows cleanly, weighted by how well they follow the pixels around it.
+// A generalised Kuwahara filter over the tile fits: where the windows on both sides of a
+// tile fit better than its own and disagree in slope (fold_shares), each pixel within a
+// window's half-side takes the fits of the windows shifted by the window's half-side in
+// the eight directions, and its own blend, those that fit their own windows cleanly,
+// weighted by how well they follow the pixels around it.
 // A window that holds the pixel and fits cleanly lies on the pixel's side of the fold,
 // and a fit from the other side is far off the pixels next to it (0.2 rad x 2 mm =
 // 0.4 mm), so the band narrows to the fold's rounding. A defect cannot choose its own
@@ -23,12 +24,11 @@
 namespace dentmark::detect {
 namespace {
 
-// A tile's window's mean square over the best window beside it beyond which its window
-// holds a fold. Noise gives ratios within a few per cent of 1 (windows of thousands of
-// pixels); a window across a 0.2 rad fold, tens. Its fit leaves a band that reaches a
-// tile further than the windows flagged so (the tile's own blend stays a candidate, so
-// where it follows the pixels it stays): the tiles around a flagged one are folded too.
+// A tile's window's mean square over the worse of two opposite windows beside it beyond
+// which its window may hold a fold. Noise gives ratios within a few per cent of 1
+// (windows of thousands of pixels); a window across a 0.2 rad fold, tens.
 constexpr double kFoldRatio = 1.2;
+// Mean squares below (2 µm)² are alike: a noise-free scan's are float rounding.
 constexpr double kFloor = 4e-12;
 // A side window is clean within this factor of the best one at the pixel.
 constexpr double kClean = 2.0;
