@@ -137,6 +137,33 @@ bool ReferenceSurface::blended_mean_square(int r, int c, double& mean_square) co
   return true;
 }
 
+// One thread's working arrays for a tile and the kEvidence pixels around it (side x side),
+// candidate d's at [d][y][x].
+struct ReferenceSurface::FoldScratch {
+  explicit FoldScratch(int tile)
+      : side(tile + 2 * kEvidence),
+        f(static_cast<std::size_t>(kCandidates * side * side)),
+        ms(f.size()),
+        have(f.size()),
+        resid(f.size()),
+        weight(f.size()),
+        z(static_cast<std::size_t>(side * side)),
+        w(z.size()),
+        mono(6 * z.size()),
+        shares(static_cast<std::size_t>(tile * tile)),
+        across(static_cast<std::size_t>(2 * side * tile)),
+        sums(static_cast<std::size_t>(2 * kCandidates * tile * tile)) {}
+  int side;
+  std::vector<double> f, ms;  // the candidate's height and its windows' mean square
+  std::vector<std::uint8_t> have;
+  std::vector<double> resid, weight;  // its weighted squared residual and weight (0: none)
+  std::vector<double> z, w;           // the map's heights and weights (0 off the map)
+  std::vector<double> mono;           // [i][y][x]: 1, X, Y, X², XY, Y² about the tile's centre
+  std::vector<double> shares;
+  std::vector<double> across;  // the evidence's sums along rows: [residual or weight][y][x]
+  std::vector<double> sums;    // ... and over the square: [d][residual or weight][y][x]
+};
+
 void ReferenceSurface::fold_pass() {
   unfolded_.clear();
   fold_lines_.clear();
@@ -156,158 +183,20 @@ void ReferenceSurface::fold_pass() {
           near = near || folded[static_cast<std::size_t>(y) * tiles_x_ + x];
       if (near) tiles.push_back(ty * tiles_x_ + tx);
     }
-  const int T = tile_, s = radius_, e = kEvidence;
-  const int side = T + 2 * e;   // the tile and the pixels its evidence reaches
-  if (side > kMaxSide) return;  // (tiles are window / 8: a 64 mm window of 1 mm pixels is 8)
+  // (Tiles are window / 8: a 64 mm window of 1 mm pixels is 8.)
+  if (tile_ + 2 * kEvidence > kMaxSide) return;
   // Per pixel of those tiles: its share and its candidates (the eight side windows' fits
   // and its own blend), with their weights where the pixels around gave evidence.
   std::vector<std::vector<FoldPixel>> found(tiles.size());
 #pragma omp parallel
   {
-    std::vector<double> f(static_cast<std::size_t>(kCandidates * side * side)), ms(f.size());
-    std::vector<std::uint8_t> have(f.size()), needed(static_cast<std::size_t>(side * side));
-    std::vector<double> shares(static_cast<std::size_t>(T * T));
+    FoldScratch scratch(tile_);
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < tiles.size(); ++i) {
       const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
-      const int r0 = ty * T - e, c0 = tx * T - e;
-      // The tile's pixels' shares (the bilinear blend of their four nearest tiles'), and
-      // the pixels whose candidates their evidence needs.
-      std::fill(needed.begin(), needed.end(), 0);
-      bool any_share = false;
-      for (int y = 0; y < T; ++y)
-        for (int x = 0; x < T; ++x) {
-          const int r = ty * T + y, c = tx * T + x;
-          double a = 0.0;
-          if (r < map_.rows && c < map_.cols) {
-            const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
-            const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
-            const double ay = fy - iy, ax = fx - ix;
-            for (int n = 0; n < 4; ++n)
-              a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
-                   share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
-                         std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
-          }
-          shares[static_cast<std::size_t>(y * T + x)] = a;
-          if (a > 0.0) {
-            any_share = true;
-            for (int yy = y; yy <= y + 2 * e; ++yy)
-              for (int xx = x; xx <= x + 2 * e; ++xx) needed[static_cast<std::size_t>(yy * side + xx)] = 1;
-          }
-        }
-      if (!any_share) continue;
-      // Every candidate over the tile and its margin: the bilinear blend of the fits of
-      // the tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do.
-      int col_tile[kMaxSide], row_tile[kMaxSide];
-      double col_frac[kMaxSide], row_frac[kMaxSide];
-      for (int x = 0; x < side; ++x) {
-        const double fx = (c0 + x + 0.5) / T - 0.5;
-        col_tile[x] = static_cast<int>(std::floor(fx)), col_frac[x] = fx - col_tile[x];
-        const double fy = (r0 + x + 0.5) / T - 0.5;
-        row_tile[x] = static_cast<int>(std::floor(fy)), row_frac[x] = fy - row_tile[x];
-      }
-      for (int d = 0; d < kCandidates; ++d) {
-        const int dx = d < kOwn ? s * kDirections[d][0] : 0, dy = d < kOwn ? s * kDirections[d][1] : 0;
-        for (int y = 0; y < side; ++y) {
-          const int r = r0 + y;
-          for (int x = 0; x < side; ++x) {
-            const int c = c0 + x;
-            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
-            have[j] = 0;
-            if (!needed[static_cast<std::size_t>(y * side + x)]) continue;
-            if (r < 0 || c < 0 || r >= map_.rows || c >= map_.cols) continue;
-            const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
-            if (!(map_.weight[k] > 0.0f)) continue;
-            const bool own_pixel = y >= e && y < e + T && x >= e && x < e + T;
-            if (d == kOwn) {  // its own blend, as blend() made it
-              f[j] = ref_[k];
-              have[j] = std::isfinite(f[j]);
-              if (have[j] && own_pixel) have[j] = blended_mean_square(r, c, ms[j]);
-              continue;
-            }
-            double h = 0.0, m = 0.0, ws = 0.0;
-            bool ok = true;
-            for (int n = 0; n < 4 && ok; ++n) {
-              const int by = std::clamp(row_tile[y] + n / 2, 0, tiles_y_ - 1),
-                        bx = std::clamp(col_tile[x] + n % 2, 0, tiles_x_ - 1);
-              const int ny = by + dy, nx = bx + dx;
-              if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) {
-                ok = false;
-                break;
-              }
-              const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
-              // A window beside the map's or the panel's edge, mostly empty, fits its few
-              // pixels closely and extrapolates wildly.
-              if (!q.ok ||
-                  q.weight < kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight) {
-                ok = false;
-                break;
-              }
-              const double w =
-                  (n / 2 ? row_frac[y] : 1.0 - row_frac[y]) * (n % 2 ? col_frac[x] : 1.0 - col_frac[x]) +
-                  1e-9;
-              h += w * q.at(map_.u[k], map_.v[k], local_scale_);
-              m += w * q.mean_square;
-              ws += w;
-            }
-            if (!ok) continue;
-            f[j] = h / ws, ms[j] = m / ws, have[j] = 1;
-          }
-        }
-      }
-      for (int r = ty * T; r < std::min(map_.rows, (ty + 1) * T); ++r)
-        for (int c = tx * T; c < std::min(map_.cols, (tx + 1) * T); ++c) {
-          const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
-          if (!(map_.weight[k] > 0.0f) || !std::isfinite(ref_[k])) continue;
-          const double a = shares[static_cast<std::size_t>((r - ty * T) * T + (c - tx * T))];
-          if (!(a > 0.0)) continue;
-          const int y = r - r0, x = c - c0;
-          FoldPixel px;
-          px.k = k, px.share = static_cast<float>(a);
-          double best_ms = std::numeric_limits<double>::infinity();
-          for (int d = 0; d < kCandidates; ++d) {
-            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
-            px.height[d] = have[j] ? static_cast<float>(f[j]) : std::numeric_limits<float>::quiet_NaN();
-            if (have[j]) best_ms = std::min(best_ms, ms[j]);
-          }
-          // Evidence: the clean windows' residuals over the pixels around (the pixel's
-          // own blend among them where its window is clean too).
-          double resid[kCandidates];
-          double best_resid = std::numeric_limits<double>::infinity();
-          for (int d = 0; d < kCandidates; ++d) {
-            resid[d] = std::numeric_limits<double>::infinity();
-            const std::size_t j = static_cast<std::size_t>((d * side + y) * side + x);
-            if (!have[j] || ms[j] + kFloor > kClean * (best_ms + kFloor)) {
-              px.height[d] = std::numeric_limits<float>::quiet_NaN();  // not clean: no candidate
-              continue;
-            }
-            double sum = 0.0, wsum = 0.0;
-            for (int yy = y - e; yy <= y + e; ++yy)
-              for (int xx = x - e; xx <= x + e; ++xx) {
-                const std::size_t jj = static_cast<std::size_t>((d * side + yy) * side + xx);
-                if (!have[jj]) continue;
-                const std::size_t kk = static_cast<std::size_t>(r0 + yy) * map_.cols + (c0 + xx);
-                const double wk = map_.weight[kk], dz = map_.w[kk] - f[jj];
-                sum += wk * dz * dz, wsum += wk;
-              }
-            if (wsum > 0.0) resid[d] = sum / wsum, best_resid = std::min(best_resid, resid[d]);
-          }
-          px.evidence = std::isfinite(best_resid);
-          if (px.evidence) px.fit_error = static_cast<float>(best_resid);
-          for (int d = 0; d < kCandidates; ++d)
-            px.weight[d] = px.evidence && std::isfinite(resid[d])
-                               ? static_cast<float>(
-                                     std::exp(-kSharpness * (resid[d] - best_resid) / (best_resid + kFloor)))
-                               : 0.0f;
-          // How far the candidates that follow the pixels around about as well as the
-          // best differ: apart only where fits from both sides do (the fold's line).
-          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-          for (int d = 0; d < kCandidates; ++d)
-            if (px.weight[d] > kLineWeight && std::isfinite(px.height[d]))
-              lo = std::min(lo, px.height[d]), hi = std::max(hi, px.height[d]);
-          px.spread = hi > lo ? hi - lo : 0.0f;
-          found[i].push_back(px);
-        }
+      if (!fold_tile_shares(tx, ty, share, scratch)) continue;
+      fold_candidates(tx, ty, scratch);
+      fold_evidence(tx, ty, scratch, found[i]);
     }
   }
   std::vector<FoldPixel*> pixels;  // (pointers: the lists are large)
@@ -325,6 +214,243 @@ void ReferenceSurface::fold_pass() {
     unfolded_.emplace_back(px.k, ref_[px.k]);
     ref_[px.k] = static_cast<float>((1.0 - px.share) * ref_[px.k] + px.share * h / ws);
   }
+}
+
+// The tile's pixels' shares: the bilinear blend of their four nearest tiles'. False if
+// none has a share.
+bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>& share,
+                                        FoldScratch& fs) const {
+  const int T = tile_;
+  bool any = false;
+  for (int y = 0; y < T; ++y)
+    for (int x = 0; x < T; ++x) {
+      const int r = ty * T + y, c = tx * T + x;
+      double a = 0.0;
+      if (r < map_.rows && c < map_.cols) {
+        const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
+        const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
+        const double ay = fy - iy, ax = fx - ix;
+        for (int n = 0; n < 4; ++n)
+          a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
+               share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
+                     std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
+      }
+      fs.shares[static_cast<std::size_t>(y * T + x)] = a;
+      any = any || a > 0.0;
+    }
+  return any;
+}
+
+// Every candidate over the tile and its margin: the bilinear blend of the fits of the
+// tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
+// pixel's own blend. Also each candidate's weighted squared residual and weight per
+// pixel, for the evidence.
+void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
+  const int T = tile_, e = kEvidence, side = fs.side, s = radius_;
+  const std::size_t area = static_cast<std::size_t>(side * side);
+  const int r0 = ty * T - e, c0 = tx * T - e;
+  // A pixel's four nearest fits are at tiles (iy + n / 2, ix + n % 2), iy and ix its
+  // lower row and column of tile centres: over the tile and its margin, one of kSpan.
+  constexpr int kSpan = 3;
+  int row_tile[kMaxSide], col_tile[kMaxSide];
+  double row_frac[kMaxSide], col_frac[kMaxSide];
+  for (int x = 0; x < side; ++x) {
+    const double fx = (c0 + x + 0.5) / T - 0.5;
+    col_tile[x] = static_cast<int>(std::floor(fx)), col_frac[x] = fx - col_tile[x];
+    const double fy = (r0 + x + 0.5) / T - 0.5;
+    row_tile[x] = static_cast<int>(std::floor(fy)), row_frac[x] = fy - row_tile[x];
+  }
+  const int spans_y = row_tile[side - 1] - row_tile[0] + 1, spans_x = col_tile[side - 1] - col_tile[0] + 1;
+  // Per pixel: the map's height and weight (0 off the map), the monomials 1, X, Y, X²,
+  // XY, Y² of its position about the tile's centre.
+  const double uc = map_.u0 + (tx * T + 0.5 * T) * map_.pixel, vc = map_.v0 + (ty * T + 0.5 * T) * map_.pixel;
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y * side + x);
+      const int r = r0 + y, c = c0 + x;
+      const bool on_map = r >= 0 && c >= 0 && r < map_.rows && c < map_.cols;
+      const std::size_t k = on_map ? static_cast<std::size_t>(r) * map_.cols + c : 0;
+      const bool weighed = on_map && map_.weight[k] > 0.0f;
+      fs.w[p] = weighed ? map_.weight[k] : 0.0;
+      fs.z[p] = weighed ? map_.w[k] : 0.0;
+      const double X = weighed ? (map_.u[k] - uc) * local_scale_ : 0.0,
+                   Y = weighed ? (map_.v[k] - vc) * local_scale_ : 0.0;
+      const double mono[6] = {1.0, X, Y, X * X, X * Y, Y * Y};
+      for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = mono[i];
+    }
+  if (spans_y > kSpan || spans_x > kSpan) return;
+  for (int d = 0; d < kOwn; ++d) {
+    const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
+    // The four fits of each (iy, ix), re-expanded about the tile's centre, or none where
+    // one is missing: beyond the map, or a window beside the map's or the panel's edge,
+    // mostly empty, that fits its few pixels closely and extrapolates wildly.
+    double coef[kSpan][kSpan][4][6], mean_square[kSpan][kSpan][4];
+    bool ok[kSpan][kSpan] = {};
+    for (int gy = 0; gy < spans_y; ++gy)
+      for (int gx = 0; gx < spans_x; ++gx) {
+        ok[gy][gx] = true;
+        for (int n = 0; n < 4 && ok[gy][gx]; ++n) {
+          const int by = std::clamp(row_tile[0] + gy + n / 2, 0, tiles_y_ - 1),
+                    bx = std::clamp(col_tile[0] + gx + n % 2, 0, tiles_x_ - 1);
+          const int ny = by + dy, nx = bx + dx;
+          if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) {
+            ok[gy][gx] = false;
+            break;
+          }
+          const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+          ok[gy][gx] =
+              q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight;
+          // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
+          const double a = (uc - q.cu) * local_scale_, b = (vc - q.cv) * local_scale_;
+          const auto& c = q.c;
+          const double about[6] = {c(0) + c(1) * a + c(2) * b + c(3) * a * a + c(4) * a * b + c(5) * b * b,
+                                   c(1) + 2.0 * c(3) * a + c(4) * b,
+                                   c(2) + c(4) * a + 2.0 * c(5) * b,
+                                   c(3),
+                                   c(4),
+                                   c(5)};
+          std::copy(about, about + 6, coef[gy][gx][n]);
+          mean_square[gy][gx][n] = q.mean_square;
+        }
+      }
+    double* f = fs.f.data() + d * area;
+    double* ms = fs.ms.data() + d * area;
+    std::uint8_t* have = fs.have.data() + d * area;
+    const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
+    for (int y = 0; y < side; ++y) {
+      const int gy = row_tile[y] - row_tile[0];
+      for (int x0 = 0, x1 = 0; x0 < side; x0 = x1) {
+        const int gx = col_tile[x0] - col_tile[0];
+        for (x1 = x0 + 1; x1 < side && col_tile[x1] == col_tile[x0];) ++x1;
+        if (!ok[gy][gx]) {
+          std::fill(have + y * side + x0, have + y * side + x1, 0);
+          continue;
+        }
+        // Along the run only the column fraction ax changes: fit n weighs
+        // (1 - ax or ax) * (1 - ay or ay) + 1e-9 = alpha + ax beta, and the blend is
+        // (A + ax B) / (wa + ax wb), as in blend().
+        double A[6] = {}, B[6] = {}, mA = 0.0, mB = 0.0, wa = 0.0, wb = 0.0;
+        for (int n = 0; n < 4; ++n) {
+          const double wy = n / 2 ? row_frac[y] : 1.0 - row_frac[y];
+          const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
+          for (int i = 0; i < 6; ++i) A[i] += alpha * coef[gy][gx][n][i], B[i] += beta * coef[gy][gx][n][i];
+          mA += alpha * mean_square[gy][gx][n], mB += beta * mean_square[gy][gx][n];
+          wa += alpha, wb += beta;
+        }
+        for (int x = x0; x < x1; ++x) {
+          const std::size_t p = static_cast<std::size_t>(y * side + x);
+          const double ax = col_frac[x];
+          have[p] = fs.w[p] > 0.0;
+          const double a = A[0] + A[1] * X[p] + A[2] * Y[p] + A[3] * XX[p] + A[4] * XY[p] + A[5] * YY[p];
+          const double b = B[0] + B[1] * X[p] + B[2] * Y[p] + B[3] * XX[p] + B[4] * XY[p] + B[5] * YY[p];
+          const double inv = 1.0 / (wa + ax * wb);
+          f[p] = (a + ax * b) * inv, ms[p] = (mA + ax * mB) * inv;
+        }
+      }
+    }
+  }
+  // The pixel's own blend, as blend() made it (its windows' mean square: the tile's pixels').
+  double* f = fs.f.data() + kOwn * area;
+  std::uint8_t* have = fs.have.data() + kOwn * area;
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y * side + x);
+      have[p] = 0;
+      if (!(fs.w[p] > 0.0)) continue;
+      const int r = r0 + y, c = c0 + x;
+      f[p] = ref_[static_cast<std::size_t>(r) * map_.cols + c];
+      have[p] = std::isfinite(f[p]);
+      if (have[p] && y >= e && y < e + T && x >= e && x < e + T)
+        have[p] = blended_mean_square(r, c, fs.ms[kOwn * area + p]);
+    }
+  // What the evidence sums: weighted squared residuals and weights (0 without a candidate).
+  for (int d = 0; d < kCandidates; ++d)
+    for (std::size_t p = 0; p < area; ++p) {
+      const std::size_t j = d * area + p;
+      const double dz = fs.z[p] - fs.f[j];
+      fs.resid[j] = fs.have[j] ? fs.w[p] * dz * dz : 0.0;
+      fs.weight[j] = fs.have[j] ? fs.w[p] : 0.0;
+    }
+}
+
+// Per pixel of the tile with a share: its clean candidates, weighted by how well they
+// follow the (2 kEvidence + 1)² pixels around it.
+void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const {
+  const int T = tile_, e = kEvidence, side = fs.side;
+  const std::size_t square = static_cast<std::size_t>(T * T);
+  // Each candidate's weighted squared residuals and weights summed over the square
+  // around each pixel: along rows, then down columns.
+  for (int d = 0; d < kCandidates; ++d) {
+    const std::size_t base = static_cast<std::size_t>(d * side * side);
+    double* across_resid = fs.across.data();
+    double* across_weight = fs.across.data() + static_cast<std::size_t>(side * T);
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < T; ++x) {
+        double sr = 0.0, sw = 0.0;
+        for (int i = 0; i <= 2 * e; ++i) {
+          const std::size_t j = base + static_cast<std::size_t>(y * side + x + i);
+          sr += fs.resid[j], sw += fs.weight[j];
+        }
+        across_resid[y * T + x] = sr, across_weight[y * T + x] = sw;
+      }
+    double* sum_resid = fs.sums.data() + 2 * d * square;
+    double* sum_weight = sum_resid + square;
+    for (int y = 0; y < T; ++y)
+      for (int x = 0; x < T; ++x) {
+        double sr = 0.0, sw = 0.0;
+        for (int i = 0; i <= 2 * e; ++i)
+          sr += across_resid[(y + i) * T + x], sw += across_weight[(y + i) * T + x];
+        sum_resid[y * T + x] = sr, sum_weight[y * T + x] = sw;
+      }
+  }
+  for (int y = 0; y < T; ++y)
+    for (int x = 0; x < T; ++x) {
+      const int r = ty * T + y, c = tx * T + x;
+      if (r >= map_.rows || c >= map_.cols) continue;
+      const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
+      if (!(map_.weight[k] > 0.0f) || !std::isfinite(ref_[k])) continue;
+      const double a = fs.shares[static_cast<std::size_t>(y * T + x)];
+      if (!(a > 0.0)) continue;
+      const std::size_t at = static_cast<std::size_t>((y + e) * side + x + e),
+                        own = static_cast<std::size_t>(y * T + x);
+      FoldPixel px;
+      px.k = k, px.share = static_cast<float>(a);
+      double best_ms = std::numeric_limits<double>::infinity();
+      for (int d = 0; d < kCandidates; ++d) {
+        const std::size_t j = static_cast<std::size_t>(d * side * side) + at;
+        px.height[d] = fs.have[j] ? static_cast<float>(fs.f[j]) : std::numeric_limits<float>::quiet_NaN();
+        if (fs.have[j]) best_ms = std::min(best_ms, fs.ms[j]);
+      }
+      // Evidence: the clean windows' residuals over the pixels around (the pixel's own
+      // blend among them where its window is clean too).
+      double resid[kCandidates];
+      double best_resid = std::numeric_limits<double>::infinity();
+      for (int d = 0; d < kCandidates; ++d) {
+        resid[d] = std::numeric_limits<double>::infinity();
+        const std::size_t j = static_cast<std::size_t>(d * side * side) + at;
+        if (!fs.have[j] || fs.ms[j] + kFloor > kClean * (best_ms + kFloor)) {
+          px.height[d] = std::numeric_limits<float>::quiet_NaN();  // not clean: no candidate
+          continue;
+        }
+        const double sum = fs.sums[2 * d * square + own], wsum = fs.sums[(2 * d + 1) * square + own];
+        if (wsum > 0.0) resid[d] = sum / wsum, best_resid = std::min(best_resid, resid[d]);
+      }
+      px.evidence = std::isfinite(best_resid);
+      if (px.evidence) px.fit_error = static_cast<float>(best_resid);
+      for (int d = 0; d < kCandidates; ++d)
+        px.weight[d] =
+            px.evidence && std::isfinite(resid[d])
+                ? static_cast<float>(std::exp(-kSharpness * (resid[d] - best_resid) / (best_resid + kFloor)))
+                : 0.0f;
+      // How far the candidates that follow the pixels around about as well as the best
+      // differ: apart only where fits from both sides do (the fold's line).
+      float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+      for (int d = 0; d < kCandidates; ++d)
+        if (px.weight[d] > kLineWeight && std::isfinite(px.height[d]))
+          lo = std::min(lo, px.height[d]), hi = std::max(hi, px.height[d]);
+      px.spread = hi > lo ? hi - lo : 0.0f;
+      out.push_back(px);
+    }
 }
 
 // The fold's own line: pixels whose best candidate leaves far more around them than

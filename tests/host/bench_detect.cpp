@@ -4,6 +4,9 @@
 //   BM_ReadDetectWrite:     binary PLY read + detection + JSON write, the whole job.
 //   BM_BoxMean/<k>:         the deviation's windowed mean on a door-sized map (1300 x 1000
 //                           pixels, k x k windows; items/s = pixels/s).
+//   BM_ReferenceFit:        the reference surface on a door-sized map with a character line
+//                           (1200 x 950 pixels of 1 mm): a fit, then a refit without a
+//                           dozen defects, as detection does (items/s = pixels fitted/s).
 //   BM_QualityOverSeeds:    recall / false alarms / errors over many seeds (counters).
 #include <benchmark/benchmark.h>
 
@@ -16,6 +19,7 @@
 #include "dentmark/common/huge_pages.h"
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/detect/linear_octree.h"
+#include "dentmark/host/detect/reference_surface.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/report/defects_json.h"
@@ -120,6 +124,41 @@ void BM_BoxMean(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(values.total()));
 }
 BENCHMARK(BM_BoxMean)->Arg(3)->Arg(7)->Arg(15)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ReferenceFit(benchmark::State& state) {
+  // A gently curved panel with a 0.1 rad fold rounded at 2 mm, at 20 degrees across the
+  // map, and 20 um of noise.
+  detect::HeightMap map;
+  map.pixel = 0.001, map.cols = 1200, map.rows = 950;
+  map.u0 = -0.6, map.v0 = -0.475;
+  const std::size_t n = map.size();
+  map.weight.assign(n, 1.0f), map.cos_tilt.assign(n, 1.0f);
+  map.u.resize(n), map.v.resize(n), map.w.resize(n);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 20e-6);
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c) {
+      const std::size_t k = static_cast<std::size_t>(r) * map.cols + c;
+      const double u = map.u0 + (c + 0.5) * map.pixel, v = map.v0 + (r + 0.5) * map.pixel;
+      const double t = -0.342 * u + 0.940 * (v - 0.1);
+      map.u[k] = static_cast<float>(u), map.v[k] = static_cast<float>(v);
+      map.w[k] = static_cast<float>(0.3 * u * u + 0.2 * v * v + 0.05 * std::sqrt(t * t + 4e-6) + noise(rng));
+    }
+  // A dozen 20 mm defects' pixels, left out of the refit.
+  std::vector<float> without = map.weight;
+  for (int d = 0; d < 12; ++d) {
+    const int r0 = 60 + 70 * d, c0 = 80 + 90 * d;
+    for (int r = r0; r < r0 + 20; ++r)
+      for (int c = c0; c < c0 + 20; ++c) without[static_cast<std::size_t>(r) * map.cols + c] = 0.0f;
+  }
+  for (auto _ : state) {
+    detect::ReferenceSurface surface(map, 0.064);
+    benchmark::DoNotOptimize(surface.fit(map.weight).data());
+    benchmark::DoNotOptimize(surface.fit(without).data());
+  }
+  state.SetItemsProcessed(state.iterations() * 2 * static_cast<std::int64_t>(n));
+}
+BENCHMARK(BM_ReferenceFit)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK(BM_ReadDetectWrite)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 

@@ -89,6 +89,10 @@ class ReferenceSurface {
     float spread = 0.0f;     // the clean candidates' largest difference at the pixel
   };
   void fold_pass();
+  struct FoldScratch;
+  bool fold_tile_shares(int tx, int ty, const std::vector<float>& share, FoldScratch& fs) const;
+  void fold_candidates(int tx, int ty, FoldScratch& fs) const;
+  void fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const;
   // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
   std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
   void fill_fold_weights(const std::vector<FoldPixel*>& pixels) const;
