@@ -52,6 +52,10 @@ constexpr double kLineError = 9.0;
 // follow it equally badly.
 constexpr double kLineSpread = 4.0;
 constexpr float kLineWeight = 0.1f;
+// ... or where the fits of an opposite pair of side windows intersect and their slopes
+// along the pair differ by this much (half kMinJump: the pair may cross the fold at up
+// to 60 degrees).
+constexpr double kLineJump = 0.5 * kMinJump;
 // The pixel's own blend, a candidate besides the eight side windows' fits.
 constexpr int kOwn = 8;
 // The largest tile (pixels) plus its evidence margins the pass handles.
@@ -449,8 +453,40 @@ void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, std::vecto
         if (px.weight[d] > kLineWeight && std::isfinite(px.height[d]))
           lo = std::min(lo, px.height[d]), hi = std::max(hi, px.height[d]);
       px.spread = hi > lo ? hi - lo : 0.0f;
+      bool clean[kCandidates];
+      for (int d = 0; d < kCandidates; ++d) clean[d] = std::isfinite(px.height[d]);
+      px.crossing = crosses_fold(fs, at, clean);
       out.push_back(px);
     }
+}
+
+// Whether the fold's line passes between the pixel at 'at' (in the scratch) and the next
+// one along an opposite pair of side windows' direction, both clean there: there the two
+// windows' fits, each the surface of one side carried across the fold, intersect.
+// (Further from the line, one of them holds the fold too: a quadratic over a V overshoots
+// at its ends, and meets the other side's fit again, but does not fit cleanly.) Their difference
+// changes sign there and grows with the fold's angle on either side; for a pair along
+// the fold it stays near zero. The fits span whole windows, so the line is found
+// whatever the noise, where the pixels' residuals only show it in pieces.
+bool ReferenceSurface::crosses_fold(const FoldScratch& fs, std::size_t at, const bool* clean) const {
+  const int side = fs.side;
+  const std::size_t area = static_cast<std::size_t>(side * side);
+  for (int d = 0; d < kOwn; d += 2) {
+    if (!clean[d] || !clean[d + 1]) continue;
+    const std::ptrdiff_t step = kDirections[d][1] * side + kDirections[d][0];
+    const double length = std::hypot(kDirections[d][0], kDirections[d][1]) * map_.pixel;
+    double diff[4];  // at -2, 0, +1, +2 steps
+    bool ok = true;
+    constexpr int kAt[4] = {-2, 0, 1, 2};
+    for (int i = 0; i < 4 && ok; ++i) {
+      const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(at) + kAt[i] * step);
+      ok = fs.have[d * area + j] && fs.have[(d + 1) * area + j];
+      if (ok) diff[i] = fs.f[d * area + j] - fs.f[(d + 1) * area + j];
+    }
+    if (ok && (diff[1] > 0.0) != (diff[2] > 0.0) && std::abs(diff[3] - diff[0]) > kLineJump * 4.0 * length)
+      return true;
+  }
+  return false;
 }
 
 // The fold's own line: pixels whose best candidate leaves far more around them than
@@ -468,6 +504,8 @@ void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel*>& pixels) {
     if (px->evidence && px->fit_error > kLineError * typical + kFloor &&
         px->spread > kLineSpread * std::sqrt(typical + kFloor))
       fold_lines_[px->k] = 255;
+  for (const FoldPixel* px : pixels)
+    if (px->crossing) fold_lines_[px->k] = 255;
 }
 
 // Pixels without evidence (a defect and the margin around it, left out of the fit; the

@@ -87,12 +87,14 @@ class ReferenceSurface {
     bool evidence = false;
     float fit_error = 0.0f;  // the best candidate's mean squared residual around (with evidence)
     float spread = 0.0f;     // the clean candidates' largest difference at the pixel
+    bool crossing = false;   // the fits of two opposite side windows intersect here
   };
   void fold_pass();
   struct FoldScratch;
   bool fold_tile_shares(int tx, int ty, const std::vector<float>& share, FoldScratch& fs) const;
   void fold_candidates(int tx, int ty, FoldScratch& fs) const;
   void fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const;
+  bool crosses_fold(const FoldScratch& fs, std::size_t at, const bool* clean) const;
   // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
   std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
   void fill_fold_weights(const std::vector<FoldPixel*>& pixels) const;
