@@ -31,6 +31,9 @@ std::vector<std::uint8_t> grow(const std::vector<std::uint8_t>& marked, int nx, 
   return out;
 }
 
+// A window less full than this (of the map's own weight in it) is widened.
+constexpr double kMinFill = 0.25;
+
 std::vector<int> marked_list(const std::vector<std::uint8_t>& marked) {
   std::vector<int> list;
   for (std::size_t i = 0; i < marked.size(); ++i)
@@ -51,6 +54,30 @@ ReferenceSurface::ReferenceSurface(const HeightMap& map, double window) : map_(m
   gv_ = map.v0 + 0.5 * map.rows * px;
   gs_ = 2.0 / (std::max(map.cols, map.rows) * px);
   local_scale_ = 1.0 / (radius_ * tile_ * px);
+  // The map's own weight per tile, summed as an integral image.
+  const int ic = tiles_x_ + 1;
+  capacity_.assign(static_cast<std::size_t>(ic) * (tiles_y_ + 1), 0.0);
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c) {
+      const float w = map.weight[static_cast<std::size_t>(r) * map.cols + c];
+      if (w > 0.0f) capacity_[static_cast<std::size_t>(r / tile_ + 1) * ic + c / tile_ + 1] += w;
+    }
+  for (int ty = 1; ty <= tiles_y_; ++ty)
+    for (int tx = 1; tx <= tiles_x_; ++tx)
+      capacity_[static_cast<std::size_t>(ty) * ic + tx] +=
+          capacity_[static_cast<std::size_t>(ty - 1) * ic + tx] +
+          capacity_[static_cast<std::size_t>(ty) * ic + tx - 1] -
+          capacity_[static_cast<std::size_t>(ty - 1) * ic + tx - 1];
+}
+
+double ReferenceSurface::capacity_at(int tx, int ty, int radius) const {
+  const int ic = tiles_x_ + 1;
+  const int x0 = std::max(0, tx - radius), x1 = std::min(tiles_x_, tx + radius + 1),
+            y0 = std::max(0, ty - radius), y1 = std::min(tiles_y_, ty + radius + 1);
+  return capacity_[static_cast<std::size_t>(y1) * ic + x1] -
+         capacity_[static_cast<std::size_t>(y0) * ic + x1] -
+         capacity_[static_cast<std::size_t>(y1) * ic + x0] +
+         capacity_[static_cast<std::size_t>(y0) * ic + x0];
 }
 
 ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
@@ -129,12 +156,26 @@ ReferenceSurface::Moments ReferenceSurface::window_at(int tx, int ty, int radius
 // from scratch.
 ReferenceSurface::Quadratic ReferenceSurface::fit_at(int tx, int ty) const {
   double whole = 0.0, half = 0.0;
-  Quadratic q = solve(window_at(tx, ty, radius_), tx, ty, whole);
+  const Moments window = window_at(tx, ty, radius_);
+  // Where most of the window's pixels are left out (a handle and the margins around it,
+  // a large defect), those left lie to one side, and their quadratic extrapolates to the
+  // tile by up to millimetres (a false 0.75 mm dent beside a handle): the window twice as
+  // wide then, if it is full enough, else no fit.
+  if (window.m[0] < kMinFill * capacity_at(tx, ty, radius_)) {
+    const Moments wider = window_at(tx, ty, 2 * radius_);
+    Quadratic q = solve(wider, tx, ty, whole);
+    q.ok = q.ok && wider.m[0] >= kMinFill * capacity_at(tx, ty, 2 * radius_);
+    q.whole_mean_square = whole, q.wide = true;
+    return q;
+  }
+  Quadratic q = solve(window, tx, ty, whole);
   const double whole_ms = whole;
   // (Tried everywhere: gated to slopes over 0.3, 2 of 501 door defects were lost.)
   if (radius_ >= 2 && q.ok) {
-    Quadratic small = solve(window_at(tx, ty, radius_ / 2), tx, ty, half);
-    if (small.ok && whole > 2.0 * half) {
+    // (Mostly full too: a sliver of pixels fits closely and extrapolates wildly.)
+    const Moments half_window = window_at(tx, ty, radius_ / 2);
+    Quadratic small = solve(half_window, tx, ty, half);
+    if (small.ok && whole > 2.0 * half && half_window.m[0] >= kMinFill * capacity_at(tx, ty, radius_ / 2)) {
       q = small;
       double quarter = 0.0;
       // ... and, where the panel is steeper than 45 degrees to the map plane, so may a
@@ -364,9 +405,14 @@ const std::vector<float>& ReferenceSurface::fit(const std::vector<float>& weight
     tiles_[static_cast<std::size_t>(moments[i])] =
         tile_moments(moments[i] % tiles_x_, moments[i] / tiles_x_, weights);
   integrate();
-  // A fit changes when its window holds a changed tile; a pixel when one of its four
-  // nearest fits does (they are in its own tile and the eight around it).
-  const std::vector<std::uint8_t> refit = grow(changed, tiles_x_, tiles_y_, radius_);
+  // A fit changes when its window holds a changed tile (a widened one, when its wider
+  // window does); a pixel when one of its four nearest fits does (they are in its own
+  // tile and the eight around it).
+  std::vector<std::uint8_t> refit = grow(changed, tiles_x_, tiles_y_, radius_);
+  {
+    const std::vector<std::uint8_t> wider = grow(changed, tiles_x_, tiles_y_, 2 * radius_);
+    for (std::size_t t = 0; t < tiles; ++t) refit[t] = refit[t] || (wider[t] && fits_[t].wide);
+  }
   const std::vector<int> fits = marked_list(refit);
 #pragma omp parallel for schedule(dynamic, 16)
   for (std::size_t i = 0; i < fits.size(); ++i)

@@ -61,6 +61,7 @@ class ReferenceSurface {
     double mean_square = 0.0;                             // the window's weighted residual
     double whole_mean_square = 0.0;                       // the same of the whole window's fit
     double weight = 0.0;                                  // the window's Σ ω
+    bool wide = false;                                    // fitted over twice the window
     double at(double u, double v, double scale) const {
       const double x = (u - cu) * scale, y = (v - cv) * scale;
       return c(0) + c(1) * x + c(2) * y + c(3) * x * x + c(4) * x * y + c(5) * y * y;
@@ -72,6 +73,8 @@ class ReferenceSurface {
   Quadratic fit_at(int tx, int ty) const;
   // The window sums of tiles within `radius` of (tx, ty).
   Moments window_at(int tx, int ty, int radius) const;
+  // The map's own weight (before any is left out) in the same window.
+  double capacity_at(int tx, int ty, int radius) const;
   // The quadratic (or plane) fitted to window sums about tile (tx, ty)'s centre, and its
   // weighted mean squared residual.
   Quadratic solve(const Moments& win, int tx, int ty, double& mean_square) const;
@@ -111,6 +114,7 @@ class ReferenceSurface {
   double gu_ = 0.0, gv_ = 0.0, gs_ = 1.0;  // global centre and scale of coordinates
   double local_scale_ = 1.0;               // 1 / window half-side (1/m)
   std::vector<Moments> tiles_, integral_;
+  std::vector<double> capacity_;  // integral image of the map's weights per tile
   std::vector<Quadratic> fits_;
   std::vector<float> weights_;  // of the last fit
   std::vector<float> ref_;
