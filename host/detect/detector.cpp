@@ -365,7 +365,8 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
     const double snr = std::abs(m.peak_deviation) / sigma3;
     d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
     const double min_extent = std::max(cfg.min_diameter, 2.5 * st.spacing);
-    if (!comp.has_deviation && (shape.length < min_extent || touches_spike(comp.pixels))) {
+    if ((!comp.has_deviation && (shape.length < min_extent || touches_spike(comp.pixels))) ||
+        m.single_sample) {
       d.defect_class = protocol::DefectClass::kNoise;
       f.reason = "isolated spike (outlier)";
     } else if (m.rough_surroundings) {

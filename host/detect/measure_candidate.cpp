@@ -32,6 +32,10 @@ constexpr double kSmoothRingFloor = 0.5;
 // deep, measured on the wall's vertices); no dent or bump is that deep.
 constexpr double kFarSample = 0.02;
 
+// A single vertex standing out by this many times the deviation's noise, with none beside
+// it at half its height, is an outlier (coarse scans, which have no spike test).
+constexpr double kSingleSample = 20.0;
+
 // A pixel's reference this close to the blend of tile fits is the blend's.
 constexpr double kSameHeight = 1e-7;
 
@@ -401,20 +405,50 @@ Measurement measure_candidate(const CandidateScene& scene, const std::vector<std
     ws += wk;
   }
   m.position /= ws;
-  if (scene.coarse && reference.local() && !apex_fitted) {
+  if (scene.coarse) {
     // A pixel spans several samples on a coarse scan and averages a narrow apex away:
-    // take the apex from the mesh vertices that fall in the candidate.
-    double best = 0.0;
+    // the apex from the mesh vertices that fall in the candidate, unless fitted.
+    // And whether one vertex alone stands out: among those within kSpikeReach pixels of
+    // the candidate (an outlier's own pixel is a spike, left out of it; its triangles
+    // raise the pixels around).
+    constexpr int kSpikeReach = 2;
+    int c0 = cols, c1 = 0, r0 = map.rows, r1 = 0;
+    for (auto k : pixels)
+      c0 = std::min(c0, k % cols), c1 = std::max(c1, k % cols), r0 = std::min(r0, k / cols),
+      r1 = std::max(r1, k / cols);
+    c0 -= kSpikeReach, r0 -= kSpikeReach, c1 += kSpikeReach, r1 += kSpikeReach;
+    const int wide = c1 - c0 + 1;
+    std::vector<std::uint8_t> reach(static_cast<std::size_t>(wide * (r1 - r0 + 1)), 0);
+    for (auto k : pixels)
+      for (int r = k / cols - kSpikeReach; r <= k / cols + kSpikeReach; ++r)
+        for (int c = k % cols - kSpikeReach; c <= k % cols + kSpikeReach; ++c)
+          reach[static_cast<std::size_t>((r - r0) * wide + c - c0)] = 1;
+    double best = 0.0, best_near = 0.0, next_near = 0.0;  // extreme deviations (sign-wise)
+    Eigen::Vector3d at_best = m.position;
     for (std::size_t i = 0; i < scene.mesh.vertex_count(); ++i) {
       const Eigen::Vector3d q = map.to_map(scene.mesh.vertex(i).cast<double>());
       const long k = map.pixel_of(q.x(), q.y());
-      if (k < 0 || scene.labels.at<int>(static_cast<int>(k / cols), static_cast<int>(k % cols)) != label)
+      if (k < 0) continue;
+      const int r = static_cast<int>(k / cols), c = static_cast<int>(k % cols);
+      if (r < r0 || r > r1 || c < c0 || c > c1 || !reach[static_cast<std::size_t>((r - r0) * wide + c - c0)])
         continue;
-      const double dv = (q.z() - reference.at(q.x(), q.y(), static_cast<std::size_t>(k))) *
+      const double dv = sign * (q.z() - reference.at(q.x(), q.y(), static_cast<std::size_t>(k))) *
                         map.cos_tilt[static_cast<std::size_t>(k)];
-      if (sign * dv > best && std::abs(dv) <= kFarSample) best = sign * dv, m.position = q;
+      if (std::abs(dv) > kFarSample) continue;
+      if (dv > best_near)
+        next_near = best_near, best_near = dv;
+      else if (dv > next_near)
+        next_near = dv;
+      if (scene.labels.at<int>(r, c) == label && dv > best) best = dv, at_best = q;
     }
-    if (best > std::abs(m.height)) m.height = sign * best;
+    if (reference.local() && !apex_fitted) {
+      m.position = at_best;
+      if (best > std::abs(m.height)) m.height = sign * best;
+    }
+    // A defect, however narrow, lifts the samples around its apex too (the paper's 9 mm
+    // bump at 4.5 mm spacing: 5.6 and 3.6 mm); a sample thrown off along its ray stands
+    // alone (4 mm, the next 0.04 mm at 1.2 mm spacing).
+    m.single_sample = best_near > kSingleSample * scene.deviation_noise && next_near < 0.5 * best_near;
   }
   // A candidate with no pixel measurable against a reference (spikes only, or beyond
   // every fit) has no height: it is noise, and no NaN reaches the output.

@@ -39,6 +39,8 @@ struct Measurement {
   std::int32_t peak = 0;                               // the peak's pixel
   // The ring is not a smooth panel: the candidate lies between design features.
   bool rough_surroundings = false;
+  // On a coarse scan, one vertex alone stands out, far beyond the noise: an outlier.
+  bool single_sample = false;
 };
 
 // pixels: the candidate's (label 'label' in scene.labels); length: its longer axis (m);

@@ -661,6 +661,57 @@ TEST(Detect, StrayPointsFarOffThePanelAreLeftOut) {
   }
 }
 
+TEST(Detect, ACoarseNoisyDoorReportsNoDesignFeatureAsADefect) {
+  // 0.8 mm spacing and 40 um of noise, twice the target's: the crease's rounding shows
+  // in the pixels' residuals only in pieces, which were reported as 6-8 dents along it
+  // (the fold line is now where the fits of either side meet); and beside the handle,
+  // with most of a window left out, a fit of the rest extrapolated by 0.7 mm (a false
+  // dent; such a window now widens). Every defect of 10 mm or more is still found.
+  SKIP_FULL_DOOR_UNDER_SANITIZER();
+  for (std::uint64_t seed : {51u, 52u}) {
+    SCOPED_TRACE(seed);
+    sim::scan::ScanOptions o;
+    o.seed = seed;
+    o.spacing = 0.0008;
+    o.noise = 40e-6;
+    o.defects = 12;
+    o.outlier_fraction = 1e-5;
+    o.shape.width = 0.8;
+    o.shape.height = 0.6;
+    const ScanRun r = run(o);
+    EXPECT_EQ(r.eval.false_alarms, 0);
+    ASSERT_FALSE(r.eval.classes.empty());
+    EXPECT_EQ(r.eval.classes[0].found, r.eval.classes[0].total);  // 10 mm and 50 um or more
+  }
+}
+
+TEST(Detect, OnACoarseScanALoneOutlierVertexIsNoBump) {
+  // At 1.2 mm spacing a map pixel holds one or two samples, too few for the 3 x 3 median
+  // spike test. An outlier vertex 2-20 mm off along its ray then stood as a 4 mm "bump"
+  // 5 mm across. A defect lifts the vertices around its apex too (the paper's 9 mm bump
+  // at 4.5 mm spacing: PapersCaseFindsTheTallBumpNotTheHandle); a thrown sample stands
+  // alone.
+  for (std::uint64_t seed : {29u, 30u}) {
+    SCOPED_TRACE(seed);
+    sim::scan::ScanOptions o = small_door(seed);
+    o.spacing = 0.0012;
+    const ScanRun clean = run(o);
+    const ScanRun spiked = run(o, [seed](ingest::Mesh& mesh) {
+      std::mt19937_64 rng(seed);
+      std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+      for (int i = 0; i < 20; ++i) {
+        auto& v =
+            mesh.vertices[static_cast<std::size_t>(u01(rng) * static_cast<float>(mesh.vertices.size() - 1))];
+        v += (u01(rng) < 0.5f ? -1.0f : 1.0f) * (0.002f + 0.018f * u01(rng)) *
+             v.normalized();  // along the ray
+      }
+    });
+    EXPECT_GE(clean.eval.matched, 2);  // the larger ones: the 5-6 mm are too fine for 1.2 mm
+    EXPECT_EQ(spiked.eval.matched, clean.eval.matched);
+    EXPECT_EQ(spiked.eval.false_alarms, 0);
+  }
+}
+
 TEST(Detect, CleanPanelWithOutliersAndShuffledTrianglesHasNoDefects) {
   sim::scan::ScanOptions o = small_door(13);
   o.planted.clear();
