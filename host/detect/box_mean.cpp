@@ -1,3 +1,4 @@
+#include "hot_loop.h"
 #include "box_mean.h"
 
 #include <omp.h>
@@ -15,7 +16,7 @@ namespace dentmark::detect {
 // threads; sums are kept in double, so running them costs no precision. The row sums
 // are a chain of dependent additions: two rows are run side by side, so that one row's
 // additions fill the other's wait.
-void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_weight, cv::Mat& out) {
+DENTMARK_HOT_LOOP void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_weight, cv::Mat& out) {
   if (values.type() != CV_32F || weights.type() != CV_32F || values.size() != weights.size() || k < 1 ||
       k % 2 == 0 || !values.isContinuous() || !weights.isContinuous())
     throw std::invalid_argument("box_mean: two continuous CV_32F images of one size and an odd k");

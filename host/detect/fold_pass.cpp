@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "hot_loop.h"
 #include "dentmark/host/detect/reference_surface.h"
 
 namespace dentmark::detect {
@@ -249,7 +250,7 @@ bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>
 // tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
 // pixel's own blend. Also each candidate's weighted squared residual and weight per
 // pixel, for the evidence.
-void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
   const int T = tile_, e = kEvidence, side = fs.side, s = radius_;
   const std::size_t area = static_cast<std::size_t>(side * side);
   const int r0 = ty * T - e, c0 = tx * T - e;
@@ -379,7 +380,7 @@ void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
 
 // Per pixel of the tile with a share: its clean candidates, weighted by how well they
 // follow the (2 kEvidence + 1)² pixels around it.
-void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const {
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const {
   const int T = tile_, e = kEvidence, side = fs.side;
   const std::size_t square = static_cast<std::size_t>(T * T);
   // Each candidate's weighted squared residuals and weights summed over the square

@@ -11,6 +11,7 @@
 #include <new>
 #include <utility>
 
+#include "hot_loop.h"
 #include "threads.h"
 
 namespace dentmark::detect::detail {
@@ -226,7 +227,7 @@ struct TriangleBatch {
   float f[3][kBatch];     // centroid's position in its cell (edge = 1)
   std::int32_t cell[3][kBatch];
 
-  void compute(const LeafGrid& grid) {
+  DENTMARK_HOT_LOOP void compute(const LeafGrid& grid) {
     const float cells_max = static_cast<float>((1 << grid.depth) - 1);
 #pragma omp simd
     for (int j = 0; j < kBatch; ++j) {
@@ -472,7 +473,7 @@ class LeafFiler {
   }
 
   // Sensor order: a leaf's triangles meet their open leaf.
-  void sum_open(const TriangleBatch& t, int m) {
+  DENTMARK_HOT_LOOP void sum_open(const TriangleBatch& t, int m) {
     for (int j = 0; j < m; ++j) {
       const Eigen::Vector3i cell(t.cell[0][j], t.cell[1][j], t.cell[2][j]);
       if (cell != last_cell_ || last_->count == 0xffff) {  // mostly the same leaf
@@ -494,7 +495,7 @@ class LeafFiler {
   }
 
   // Random order: one record per triangle.
-  void file_each(const TriangleBatch& t, int m) {
+  DENTMARK_HOT_LOOP void file_each(const TriangleBatch& t, int m) {
     for (int j = 0; j < m; ++j) {
       Single& r = store_.singles.append(key_of(t, j) >> low_bits_);
       const float an[3] = {t.an[0][j], t.an[1][j], t.an[2][j]};

@@ -1,3 +1,4 @@
+#include "hot_loop.h"
 #include "dentmark/host/detect/reference_surface.h"
 
 #include <Eigen/Cholesky>
@@ -80,7 +81,7 @@ double ReferenceSurface::capacity_at(int tx, int ty, int radius) const {
          capacity_[static_cast<std::size_t>(y0) * ic + x0];
 }
 
-ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
+DENTMARK_HOT_LOOP ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
                                                          const std::vector<float>& weights) const {
   // The sums in local variables (registers), term by term in the same order as the
   // definition: Σ ω x^a y^b with x^a y^b formed as ((ω x^a) y) y ...
@@ -249,7 +250,7 @@ ReferenceSurface::Quadratic ReferenceSurface::solve(const Moments& win, int tx, 
   return q;
 }
 
-void ReferenceSurface::blend(int ty, int tx0, int tx1) {
+DENTMARK_HOT_LOOP void ReferenceSurface::blend(int ty, int tx0, int tx1) {
   const int T = tile_;
   const int c1 = std::min(map_.cols, tx1 * T), r1 = std::min(map_.rows, (ty + 1) * T);
   if (c1 <= tx0 * T || r1 <= ty * T) return;
