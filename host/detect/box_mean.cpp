@@ -1,4 +1,3 @@
-#include "hot_loop.h"
 #include "box_mean.h"
 
 #include <omp.h>
@@ -9,6 +8,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "hot_loop.h"
+
 namespace dentmark::detect {
 
 // Both sums in one pass of running sums: column sums over the window's rows, moved down
@@ -16,7 +17,8 @@ namespace dentmark::detect {
 // threads; sums are kept in double, so running them costs no precision. The row sums
 // are a chain of dependent additions: two rows are run side by side, so that one row's
 // additions fill the other's wait.
-DENTMARK_HOT_LOOP void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_weight, cv::Mat& out) {
+DENTMARK_HOT_LOOP void box_mean(const cv::Mat& values, const cv::Mat& weights, int k, float min_weight,
+                                cv::Mat& out) {
   if (values.type() != CV_32F || weights.type() != CV_32F || values.size() != weights.size() || k < 1 ||
       k % 2 == 0 || !values.isContinuous() || !weights.isContinuous())
     throw std::invalid_argument("box_mean: two continuous CV_32F images of one size and an odd k");

@@ -19,8 +19,8 @@
 #include <cstdint>
 #include <limits>
 
-#include "hot_loop.h"
 #include "dentmark/host/detect/reference_surface.h"
+#include "hot_loop.h"
 
 namespace dentmark::detect {
 namespace {
@@ -380,7 +380,8 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
 
 // Per pixel of the tile with a share: its clean candidates, weighted by how well they
 // follow the (2 kEvidence + 1)² pixels around it.
-DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const {
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs,
+                                                       std::vector<FoldPixel>& out) const {
   const int T = tile_, e = kEvidence, side = fs.side;
   const std::size_t square = static_cast<std::size_t>(T * T);
   // Each candidate's weighted squared residuals and weights summed over the square

@@ -1,4 +1,3 @@
-#include "hot_loop.h"
 #include "dentmark/host/detect/reference_surface.h"
 
 #include <Eigen/Cholesky>
@@ -6,6 +5,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+
+#include "hot_loop.h"
 
 namespace dentmark::detect {
 namespace {
@@ -81,8 +82,8 @@ double ReferenceSurface::capacity_at(int tx, int ty, int radius) const {
          capacity_[static_cast<std::size_t>(y0) * ic + x0];
 }
 
-DENTMARK_HOT_LOOP ReferenceSurface::Moments ReferenceSurface::tile_moments(int tx, int ty,
-                                                         const std::vector<float>& weights) const {
+DENTMARK_HOT_LOOP ReferenceSurface::Moments ReferenceSurface::tile_moments(
+    int tx, int ty, const std::vector<float>& weights) const {
   // The sums in local variables (registers), term by term in the same order as the
   // definition: Σ ω x^a y^b with x^a y^b formed as ((ω x^a) y) y ...
   double m[15] = {}, hz[6] = {}, zz = 0.0;
