@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -129,14 +130,17 @@ inline bool triangle_record(const char* q, std::uint64_t nv, bool signed_index, 
 }
 
 // Adds a polygon as a fan; drops faces with < 3 corners or out-of-range indices fail.
+// Indices are checked against the vertex count the header declares: a PLY's elements
+// may come in any order, faces before vertices too.
 class FaceSink {
  public:
-  FaceSink(Mesh& mesh, const std::string& path) : mesh_(mesh), path_(path) {}
+  FaceSink(Mesh& mesh, const std::string& path, std::uint64_t vertices)
+      : mesh_(mesh), path_(path), vertices_(vertices) {}
   void begin() { corners_.clear(); }
   void corner(std::int64_t index, const std::string& where) {
-    if (index < 0 || static_cast<std::uint64_t>(index) >= mesh_.vertices.size())
+    if (index < 0 || static_cast<std::uint64_t>(index) >= vertices_)
       throw IngestError(path_ + ": " + where + ": vertex index " + std::to_string(index) + " out of range (" +
-                        std::to_string(mesh_.vertices.size()) + " vertices)");
+                        std::to_string(vertices_) + " vertices)");
     corners_.push_back(static_cast<std::uint32_t>(index));
   }
   void end() {
@@ -151,6 +155,7 @@ class FaceSink {
  private:
   Mesh& mesh_;
   const std::string& path_;
+  const std::uint64_t vertices_;
   std::vector<std::uint32_t> corners_;
 };
 
@@ -208,11 +213,15 @@ PlyHeader parse_header(const std::string& path, std::string_view bytes) {
       e.name = std::string(hdr.word());
       const long long n = hdr.integer("element count");
       if (n < 0) hdr.fail("negative element count");
-      // Faces index the vertices read before them: a second vertex list would leave
-      // them pointing into the wrong one (or past its end).
+      // Faces index the one vertex list, wherever it comes: with a second, which they
+      // point into would be a guess.
       if (e.name == "vertex" &&
           std::any_of(elements.begin(), elements.end(), [](const Element& o) { return o.name == "vertex"; }))
         hdr.fail("a second 'vertex' element");
+      // Triangles hold 32-bit indices.
+      if (e.name == "vertex" &&
+          static_cast<unsigned long long>(n) > std::numeric_limits<std::uint32_t>::max())
+        hdr.fail(std::to_string(n) + " vertices; at most 2^32 - 1 are supported");
       e.count = static_cast<std::uint64_t>(n);
       elements.push_back(std::move(e));
     } else if (key == "property") {
@@ -268,7 +277,14 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
   const std::vector<Element>& elements = header.elements;
   const std::size_t body = header.body;
   Mesh mesh;
-  FaceSink faces(mesh, path);
+  // The vertex count the header declares (the body is checked to hold them all).
+  std::uint64_t vertex_count = 0;
+  for (const Element& e : elements)
+    if (e.name == "vertex") {
+      vertex_count = e.count;
+      break;
+    }
+  FaceSink faces(mesh, path, vertex_count);
   const bool swap = (header.encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
 
   if (header.encoding == Encoding::kAscii) {
@@ -400,7 +416,7 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
     const bool simple = is_face && e.properties.size() == 1 && e.properties[0].is_list;
     const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;
     const std::size_t cs = scalar_size(ct), is = scalar_size(it);
-    const std::uint64_t nv = mesh.vertices.size();
+    const std::uint64_t nv = vertex_count;
     // Fast path: all-triangle face block whose size fits exactly in what is left
     // (typical scanner output): checked and decoded in parallel.
     const std::size_t rec = cs + 3 * is;

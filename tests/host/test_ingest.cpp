@@ -135,6 +135,46 @@ TEST(Ingest, BinaryPlyAllEncodingsAndTypes) {
         }
 }
 
+// PLY allows its elements in any order: faces before the vertices they index read as
+// the usual order does, in ASCII and binary; an index past the declared vertices fails.
+TEST(Ingest, PlyFacesBeforeVertices) {
+  const auto faces_first = [](const std::string& ply) {
+    // Swap the two element blocks of the header and of the body.
+    const std::size_t v = ply.find("element vertex"), f = ply.find("element face"),
+                      h = ply.find("end_header\n") + 11;
+    const std::string head =
+        ply.substr(0, v) + ply.substr(f, h - 11 - f) + ply.substr(v, f - v) + "end_header\n";
+    return std::pair{head, h};
+  };
+  {
+    const std::string ply = ascii_ply();
+    const auto [head, body] = faces_first(ply);
+    const std::size_t faces = ply.find("4 0 1 2 3\n");
+    expect_reference(
+        read_mesh(write_file("ff.ply", head + ply.substr(faces) + ply.substr(body, faces - body))));
+    std::string bad = head + "4 0 1 2 5\n3 1 4 2\n" + ply.substr(body, faces - body);
+    EXPECT_THROW(
+        {
+          try {
+            read_mesh(write_file("ff_bad.ply", bad));
+          } catch (const IngestError& e) {
+            EXPECT_NE(std::string(e.what()).find("vertex index 5 out of range (5 vertices)"),
+                      std::string::npos)
+                << e.what();
+            throw;
+          }
+        },
+        IngestError);
+  }
+  for (bool big : {false, true}) {
+    const std::string ply = binary_ply(big, false, "uchar", "int");
+    const auto [head, body] = faces_first(ply);
+    const std::size_t vertex_bytes = 5 * 4 * sizeof(float);
+    expect_reference(read_mesh(
+        write_file("ffb.ply", head + ply.substr(body + vertex_bytes) + ply.substr(body, vertex_bytes))));
+  }
+}
+
 TEST(Ingest, ObjWithPolygonsTexturesAndNegativeIndices) {
   std::string s = "# comment\no panel\n";
   for (auto& v : kV)
