@@ -96,6 +96,9 @@ int run_detect(const DetectArgs& a) {
   if (scan.cloud_charts > 0)
     log::info(a.scan + ": the point cloud folds over in the sensor's view (merged views?): meshed in " +
               std::to_string(scan.cloud_charts) + " charts");
+  if (det.stats.rewound_triangles > 0)
+    log::info(a.scan + ": " + std::to_string(det.stats.rewound_triangles) +
+              " triangles were wound against their neighbours (a merged or re-exported mesh?): rewound");
   if (det.stats.stray_triangles > 0)
     log::info(a.scan + ": " + std::to_string(det.stats.stray_triangles) +
               " triangles reach stray points far off the panel: left out");

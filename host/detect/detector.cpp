@@ -9,6 +9,7 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "background.h"
 #include "border_zone.h"
@@ -17,6 +18,7 @@
 #include "dentmark/host/detect/grouping.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/detect/reference_surface.h"
+#include "dentmark/host/ingest/orient_triangles.h"
 #include "dentmark/host/ingest/units.h"
 #include "design_rules.h"
 #include "deviation.h"
@@ -35,6 +37,12 @@ using Clock = std::chrono::steady_clock;
 // Robust standard deviations of the leaves' normal spread (eq. 3) above its median that
 // a feature leaf must reach at least.
 constexpr double kLeafNoiseTail = 6.0;
+// Winding checks (winding_suspect): a median leaf spread this high is no noise (σ² = 1 -
+// |mean normal|²: 0.5 is a mean normal of 0.87); a leaf whose mean normal is under half
+// its area has normals over 120° apart in it; a consistent panel has next to none.
+constexpr double kWindingNoiseFloor = 0.5;
+constexpr double kOpposedLeafMeanNormal = 0.5;
+constexpr double kOpposedLeafShare = 1e-4;
 
 // A candidate: connected pixels over the deviation test or in an eq. (3)-(4) group.
 struct Candidate {
@@ -89,7 +97,7 @@ double panel_spacing_if_other(const ingest::MeshView& mesh, const LinearOctree& 
 }
 
 Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
-                            bool remeasure);
+                            bool remeasure, bool check_winding = false);
 
 // detect_at_spacing once more at the panel's spacing; the first try shows as "spacing".
 Detection start_over(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
@@ -102,8 +110,23 @@ Detection start_over(const ingest::MeshView& input, const DetectConfig& cfg, dou
 
 // detect() on samples 'spacing' apart. remeasure: when a background is found, measure
 // the spacing again on the panel alone and start over if it differs.
+// Signs that neighbouring triangles are wound opposite ways: their normals cancel in the
+// sums (eq. 1-3), so leaves straddling a change of winding look like sharp folds, and an
+// inverted part's normals point 180° away from the rest, which reads as a surface that
+// wraps round. Then the winding is worth checking (orient_triangles.h); a consistent mesh
+// never shows the first two, and a wrapped panel's check costs little beside its charts.
+bool winding_suspect(const LinearOctree& tree, double noise_floor_sigma, const Charts& charts) {
+  if (noise_floor_sigma > kWindingNoiseFloor || charts.axes.size() > 1) return true;
+  std::size_t opposed = 0;
+  const auto& leaves = tree.leaves();
+#pragma omp parallel for reduction(+ : opposed) schedule(static)
+  for (std::size_t i = 0; i < leaves.size(); ++i)
+    opposed += leaves[i].count >= 2 && leaves[i].sum_an.norm() < kOpposedLeafMeanNormal * leaves[i].area;
+  return static_cast<double>(opposed) > kOpposedLeafShare * static_cast<double>(leaves.size());
+}
+
 Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
-                            bool remeasure) {
+                            bool remeasure, bool check_winding) {
   const auto start = Clock::now();
   Detection out;
   auto t0 = Clock::now();
@@ -162,6 +185,23 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
                                      st.noise_floor_sigma + kLeafNoiseTail * st.noise_floor_spread);
   const Charts charts = find_charts(tree, st.noise_floor_sigma);
   st.charts = std::max<std::size_t>(1, charts.axes.size());
+  if (check_winding && winding_suspect(tree, st.noise_floor_sigma, charts)) {
+    std::optional<ingest::OrientedMesh> oriented;
+    if (ingest::has_opposed_neighbours(input)) {
+      tree_ptr.reset();  // (its memory for the rewinding)
+      oriented = ingest::orient_consistently(input);
+    }
+    if (oriented) {
+      // Detected again on the rewound mesh; the first try shows as "winding".
+      const auto first_try = Clock::now() - start;
+      Detection again = detect_at_spacing(oriented->mesh, cfg, spacing, remeasure);
+      again.stats.rewound_triangles = oriented->flipped;
+      again.timing.insert(again.timing.begin(),
+                          {"winding", std::chrono::duration<double>(first_try).count()});
+      return again;
+    }
+    lap("winding");
+  }
   if (charts.axes.size() <= 1)
     return inspect(input, mesh, std::move(tree_ptr), cfg, std::move(out), remeasure, start, t0);
   // The whole scan's map: its background (each chart's map sees only part of it), and
@@ -482,7 +522,7 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
 }  // namespace
 
 Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
-  return detect_at_spacing(input, cfg, ingest::point_spacing(input), true);
+  return detect_at_spacing(input, cfg, ingest::point_spacing(input), true, true);
 }
 
 }  // namespace dentmark::detect

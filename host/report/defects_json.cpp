@@ -128,7 +128,8 @@ nlohmann::json defects_to_json(const detect::Detection& det, const SourceInfo& s
                {"deviation_noise", s.deviation_noise},
                {"stray_triangles", s.stray_triangles},
                {"background_area", s.background_area},
-               {"charts", s.charts}};
+               {"charts", s.charts},
+               {"rewound_triangles", s.rewound_triangles}};
   j["defects"] = nlohmann::json::array();
   for (const auto& f : det.defects) j["defects"].push_back(item(f));
   j["features"] = nlohmann::json::array();

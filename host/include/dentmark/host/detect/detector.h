@@ -27,11 +27,12 @@ struct DetectionStats {
   double noise_floor_spread = 0.0;    // its robust sigma (1.4826 MAD) over the leaves
   double leaf_sigma_threshold = 0.0;  // a feature leaf's spread exceeds this (eq. 3)
   std::size_t feature_leaves = 0, feature_groups = 0;
-  double deviation_noise = 0.0;     // m, robust sigma of the per-pixel deviation
-  std::size_t working_bytes = 0;    // memory beyond the mesh
-  std::size_t stray_triangles = 0;  // left out: reaching stray points far off the panel
-  double background_area = 0.0;     // m² of the map taken off: a wall or floor behind the panel
-  std::size_t charts = 1;           // height maps the surface was inspected in (charts.h)
+  double deviation_noise = 0.0;       // m, robust sigma of the per-pixel deviation
+  std::size_t working_bytes = 0;      // memory beyond the mesh
+  std::size_t stray_triangles = 0;    // left out: reaching stray points far off the panel
+  double background_area = 0.0;       // m² of the map taken off: a wall or floor behind the panel
+  std::size_t charts = 1;             // height maps the surface was inspected in (charts.h)
+  std::size_t rewound_triangles = 0;  // wound against their neighbours: rewound (orient_triangles.h)
 };
 
 struct Finding {

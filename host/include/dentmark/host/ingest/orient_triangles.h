@@ -1,0 +1,34 @@
+#pragma once
+// Consistent triangle winding. A mesh merged from several views or written by a tool
+// that does not keep winding may have neighbouring triangles wound opposite ways; their
+// normals then cancel in the octree's sums (eq. 1-3) and a dent reads as a bump where
+// the winding is inverted. Here every edge-connected part is wound like most of its
+// area (a consistent mesh comes back untouched; the detector decides which side is out).
+
+#include <cstddef>
+#include <optional>
+
+#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/ingest/mesh_view.h"
+
+namespace dentmark::ingest {
+
+struct OrientedMesh {
+  Mesh mesh;                // the input's vertices; triangles rewound where they disagreed
+  std::size_t flipped = 0;  // triangles rewound
+  std::size_t parts = 0;    // edge-connected parts
+};
+
+// Whether two triangles leave some vertex along the same edge: neighbours wound opposite
+// ways, or an edge of three or more triangles. One pass over the corners, about 16 bytes
+// per triangle for the while.
+bool has_opposed_neighbours(const MeshView& mesh);
+
+// Walks the triangles across their manifold edges (an edge shared by exactly two
+// triangles); a triangle agrees with a neighbour when the two run the shared edge in
+// opposite directions. Each part keeps the winding of the larger area of it. Returns
+// nothing when every part is consistent already. Edges of three or more triangles, and
+// degenerate triangles, link nothing.
+std::optional<OrientedMesh> orient_consistently(const MeshView& mesh);
+
+}  // namespace dentmark::ingest
