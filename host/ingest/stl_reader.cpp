@@ -1,6 +1,6 @@
 // STL, binary (80-byte header, uint32 count, 50 bytes per facet) and ascii ('solid ...
 // facet ... vertex x y z ... endsolid', keywords in any case). Facets keep their own
-// three vertices.
+// three corners in the file; corners at one position become one vertex here.
 #include <cstdint>
 #include <cstring>
 
@@ -75,6 +75,7 @@ Mesh read_stl(const std::string& path, std::string_view bytes) {
       const auto b = static_cast<std::uint32_t>(3 * i);
       mesh.triangles[i] = {b, b + 1, b + 2};
     }
+    weld_vertices(mesh);
     return mesh;
   }
   // ASCII: 'solid' first (after a byte order mark and blanks, in any case), text throughout.
@@ -140,6 +141,7 @@ Mesh read_stl(const std::string& path, std::string_view bytes) {
                       ": the file ends here with no 'endsolid' after the last facet: is it cut short?");
   if (state != State::kOutside)
     throw IngestError(path + ": line " + std::to_string(last_line) + ": the file ends inside a facet");
+  weld_vertices(mesh);
   return mesh;
 }
 

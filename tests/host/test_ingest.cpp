@@ -205,7 +205,32 @@ TEST(Ingest, StlAsciiAndBinary) {
     for (int t = 0; t < 3; ++t)
       for (int c = 0; c < 3; ++c)
         for (int k = 0; k < 3; ++k) EXPECT_FLOAT_EQ(m.vertices[m.triangles[t][c]][k], kV[tris[t][c]][k]);
+    // The facets' nine corners are the five vertices they share (their edges link them).
+    EXPECT_EQ(m.vertices.size(), 5u);
+    EXPECT_EQ(m.input_points, 5u);
   }
+}
+
+TEST(Ingest, StlCornersAtOnePositionAreOneVertexAndOthersStayApart) {
+  // Two facets sharing an edge, one corner written as -0 in one and 0 in the other; a
+  // third facet whose corners differ from theirs in the last bit only.
+  std::string b(80, ' ');
+  put<std::uint32_t>(b, 3);
+  const float next = std::nextafter(1.0f, 2.0f);
+  const float facets[3][9] = {{0, 0, 0, 1, 0, 0, 1, 1, 0},
+                              {-0.0f, 0, 0, 1, 1, 0, 0, 1, 0},
+                              {next, 0, 0, next, 1, 0, 2, 0, 0}};
+  for (const auto& f : facets) {
+    for (int k = 0; k < 3; ++k) put<float>(b, 0.0f);
+    for (const float x : f) put<float>(b, x);
+    put<std::uint16_t>(b, 0);
+  }
+  const Mesh m = read_mesh(write_file("weld.stl", b));
+  ASSERT_EQ(m.triangles.size(), 3u);
+  EXPECT_EQ(m.vertices.size(), 4u + 3u);
+  EXPECT_EQ(m.triangles[0][0], m.triangles[1][0]);  // -0 and 0
+  EXPECT_EQ(m.triangles[0][2], m.triangles[1][1]);  // (1, 1, 0)
+  for (const auto v : m.triangles[2]) EXPECT_GE(v, 4u);
 }
 
 TEST(Ingest, MillimetresAreScaledToMetres) {
