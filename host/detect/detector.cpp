@@ -43,6 +43,9 @@ constexpr double kLeafNoiseTail = 6.0;
 constexpr double kWindingNoiseFloor = 0.5;
 constexpr double kOpposedLeafMeanNormal = 0.5;
 constexpr double kOpposedLeafShare = 1e-4;
+// ... and parts of at least this many triangles (or 1 % of them) may be views merged
+// without sharing an edge, each wound its own way.
+constexpr std::size_t kLargePart = 1000;
 
 // A candidate: connected pixels over the deviation test or in an eq. (3)-(4) group.
 struct Candidate {
@@ -187,12 +190,13 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   st.charts = std::max<std::size_t>(1, charts.axes.size());
   if (check_winding && winding_suspect(tree, st.noise_floor_sigma, charts)) {
     std::optional<ingest::OrientedMesh> oriented;
-    if (ingest::has_opposed_neighbours(input)) {
-      tree_ptr.reset();  // (its memory for the rewinding)
+    if (ingest::has_opposed_neighbours(input) ||
+        ingest::large_parts(input, std::max<std::size_t>(kLargePart, input.triangle_count() / 100)) > 1) {
       oriented = ingest::orient_consistently(input);
     }
     if (oriented) {
       // Detected again on the rewound mesh; the first try shows as "winding".
+      tree_ptr.reset();
       const auto first_try = Clock::now() - start;
       Detection again = detect_at_spacing(oriented->mesh, cfg, spacing, remeasure);
       again.stats.rewound_triangles = oriented->flipped;

@@ -1,14 +1,24 @@
 #include "dentmark/host/ingest/orient_triangles.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <utility>
 #include <vector>
 
 namespace dentmark::ingest {
 namespace {
 
 constexpr std::uint8_t kUnvisited = 2;
+// Two parts' surfaces closer than this along their normal are one surface: views of it
+// registered to within a tenth of a millimetre, not the two sides of a body panel's
+// sheet (0.6 mm and more).
+constexpr double kOnePlane = 0.3e-3;
 
 // One corner of a triangle, filed under its vertex: the triangle, and the vertices after
 // and before this one in its winding (the edges out of and into the vertex).
@@ -36,9 +46,149 @@ void file_by_vertex(const MeshView& mesh, std::vector<std::size_t>& first, std::
   first[0] = 0;
 }
 
-float area(const MeshView& mesh, const std::array<std::uint32_t, 3>& tri) {
+// Twice the area times the unit normal, as the triangle is wound.
+Eigen::Vector3f area_normal(const MeshView& mesh, const std::array<std::uint32_t, 3>& tri) {
   const Eigen::Vector3f p = mesh.vertex(tri[0]);
-  return 0.5f * (mesh.vertex(tri[1]) - p).cross(mesh.vertex(tri[2]) - p).norm();
+  return (mesh.vertex(tri[1]) - p).cross(mesh.vertex(tri[2]) - p);
+}
+
+float area(const MeshView& mesh, const std::array<std::uint32_t, 3>& tri) {
+  return 0.5f * area_normal(mesh, tri).norm();
+}
+
+// Union-find whose links carry a parity: find(x) gives x's root and whether x is wound
+// the other way from it.
+class ParityUnion {
+ public:
+  explicit ParityUnion(std::size_t n) : parent_(n), parity_(n, 0) {
+    std::iota(parent_.begin(), parent_.end(), 0);
+  }
+  std::pair<std::size_t, std::uint8_t> find(std::size_t x) {
+    std::uint8_t p = 0;
+    std::size_t r = x;
+    while (parent_[r] != r) p ^= parity_[r], r = parent_[r];
+    // Path compression with the parities folded in.
+    std::uint8_t q = p;
+    while (parent_[x] != x) {
+      const std::size_t next = parent_[x];
+      const std::uint8_t here = parity_[x];
+      parent_[x] = r, parity_[x] = q;
+      q ^= here, x = next;
+    }
+    return {r, p};
+  }
+  // Joins a and b with b's winding = a's XOR `odd`; false when they were joined already.
+  bool join(std::size_t a, std::size_t b, std::uint8_t odd) {
+    const auto [ra, pa] = find(a);
+    const auto [rb, pb] = find(b);
+    if (ra == rb) return false;
+    parent_[rb] = ra, parity_[rb] = static_cast<std::uint8_t>(pa ^ pb ^ odd);
+    return true;
+  }
+
+ private:
+  std::vector<std::size_t> parent_;
+  std::vector<std::uint8_t> parity_;
+};
+
+// Parts that share no edge (views merged side by side or overlapping, pieces joined at a
+// vertex) but lie on one surface: where two parts meet in a cell of `cell` metres, on one
+// plane (their centroids within kOnePlane and a quarter cell along the normal: not the
+// two sides of a sheet) with parallel or opposite normals, they should be wound alike. Each group of
+// parts so linked, strongest links first, is wound like the larger area of it.
+// part[t]: t's edge-connected part; flip[t]: its winding within the part (0 or 1).
+// Returns per part whether to rewind it as a whole.
+std::vector<std::uint8_t> agree_across_parts(const MeshView& mesh, const std::vector<std::uint32_t>& part,
+                                             const std::vector<std::uint8_t>& flip, std::size_t parts,
+                                             double cell) {
+  constexpr std::size_t kMinPartTriangles = 8;  // fewer give no normal to speak of
+  const std::size_t n = mesh.triangle_count();
+  std::vector<std::size_t> size(parts, 0);
+  std::vector<double> part_area(parts, 0.0);
+  for (std::size_t t = 0; t < n; ++t) ++size[part[t]];
+
+  // (cell, part) per triangle of the parts large enough, sorted: each cell's parts together.
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  for (std::size_t t = 0; t < n; ++t)
+    for (const std::uint32_t v : mesh.triangle(t))
+      if (const Eigen::Vector3f p = mesh.vertex(v); p.allFinite()) lo = lo.cwiseMin(p);
+  struct Entry {
+    std::uint64_t cell;
+    std::uint32_t part, triangle;
+    bool operator<(const Entry& o) const { return cell != o.cell ? cell < o.cell : part < o.part; }
+  };
+  std::vector<Entry> entries;
+  for (std::size_t t = 0; t < n; ++t) {
+    if (size[part[t]] < kMinPartTriangles) continue;
+    const auto tri = mesh.triangle(t);
+    const Eigen::Vector3f c = (mesh.vertex(tri[0]) + mesh.vertex(tri[1]) + mesh.vertex(tri[2])) / 3.0f;
+    const Eigen::Vector3d q = ((c - lo).cast<double>() / cell).array().floor();
+    const auto axis = [](double x) {  // 21 bits; NaN (a corner without a position) as 0
+      return x >= 0.0 ? static_cast<std::uint64_t>(std::min(x, 2097151.0)) : std::uint64_t{0};
+    };
+    entries.push_back(
+        {axis(q.x()) << 42 | axis(q.y()) << 21 | axis(q.z()), part[t], static_cast<std::uint32_t>(t)});
+  }
+  std::sort(entries.begin(), entries.end());
+
+  // Per cell, each part's area-weighted normal and centroid; per pair of parts meeting on
+  // one plane, the area over which they agree (+) or disagree (-).
+  struct Piece {
+    std::uint32_t part;
+    Eigen::Vector3d sum_an, sum_ac;
+    double area;
+  };
+  std::map<std::pair<std::uint32_t, std::uint32_t>, double> evidence;
+  std::vector<Piece> pieces;
+  for (std::size_t i = 0; i < entries.size();) {
+    std::size_t j = i;
+    pieces.clear();
+    for (; j < entries.size() && entries[j].cell == entries[i].cell; ++j) {
+      const auto tri = mesh.triangle(entries[j].triangle);
+      Eigen::Vector3d an = 0.5 * area_normal(mesh, tri).cast<double>();
+      if (flip[entries[j].triangle]) an = -an;
+      const double a = an.norm();
+      const Eigen::Vector3d c =
+          ((mesh.vertex(tri[0]) + mesh.vertex(tri[1]) + mesh.vertex(tri[2])) / 3.0f).cast<double>();
+      if (pieces.empty() || pieces.back().part != entries[j].part)
+        pieces.push_back({entries[j].part, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 0.0});
+      pieces.back().sum_an += an, pieces.back().sum_ac += a * c, pieces.back().area += a;
+    }
+    i = j;
+    for (std::size_t p = 0; p < pieces.size(); ++p)
+      for (std::size_t q = p + 1; q < pieces.size(); ++q) {
+        const Piece &a = pieces[p], &b = pieces[q];
+        if (a.sum_an.norm() < 0.5 * a.area || b.sum_an.norm() < 0.5 * b.area) continue;  // folded in the cell
+        const Eigen::Vector3d na = a.sum_an.normalized(), nb = b.sum_an.normalized();
+        const double d = na.dot(nb);
+        if (std::abs(d) < 0.7) continue;
+        const Eigen::Vector3d offset = a.sum_ac / a.area - b.sum_ac / b.area;
+        if (std::abs(offset.dot(na)) > std::min(0.25 * cell, kOnePlane)) continue;  // two sides of a sheet
+        evidence[{a.part, b.part}] += (d > 0 ? 1.0 : -1.0) * std::min(a.area, b.area);
+      }
+  }
+
+  // Strongest links first; a link that closes a loop is outvoted by the stronger ones.
+  std::vector<std::pair<double, std::pair<std::uint32_t, std::uint32_t>>> links;
+  for (const auto& [pq, e] : evidence) links.push_back({e, pq});
+  std::sort(links.begin(), links.end(),
+            [](const auto& a, const auto& b) { return std::abs(a.first) > std::abs(b.first); });
+  ParityUnion groups(parts);
+  for (const auto& [e, pq] : links) groups.join(pq.first, pq.second, e < 0 ? 1 : 0);
+
+  // Each group wound like the larger area of it.
+  for (std::size_t t = 0; t < n; ++t) part_area[part[t]] += area(mesh, mesh.triangle(t));
+  std::vector<double> area_kept(parts, 0.0), area_rewound(parts, 0.0);
+  std::vector<std::uint8_t> parity(parts);
+  std::vector<std::size_t> root(parts);
+  for (std::size_t p = 0; p < parts; ++p) {
+    std::tie(root[p], parity[p]) = groups.find(p);
+    (parity[p] ? area_rewound : area_kept)[root[p]] += part_area[p];
+  }
+  std::vector<std::uint8_t> rewind(parts);
+  for (std::size_t p = 0; p < parts; ++p)
+    rewind[p] = static_cast<std::uint8_t>(parity[p] ^ (area_rewound[root[p]] > area_kept[root[p]] ? 1 : 0));
+  return rewind;
 }
 
 }  // namespace
@@ -61,6 +211,26 @@ bool has_opposed_neighbours(const MeshView& mesh) {
   return twice;
 }
 
+std::size_t large_parts(const MeshView& mesh, std::size_t min_triangles) {
+  // Union-find over the vertices, each triangle joining its corners.
+  std::vector<std::uint32_t> parent(mesh.vertex_count());
+  std::iota(parent.begin(), parent.end(), 0u);
+  const auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const auto tri = mesh.triangle(t);
+    const std::uint32_t r = find(tri[0]);
+    for (int k = 1; k < 3; ++k)
+      if (const std::uint32_t o = find(tri[k]); o != r) parent[o] = r;
+  }
+  std::vector<std::uint32_t> triangles(mesh.vertex_count(), 0);
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) ++triangles[find(mesh.triangle(t)[0])];
+  return static_cast<std::size_t>(
+      std::count_if(triangles.begin(), triangles.end(), [&](std::uint32_t c) { return c >= min_triangles; }));
+}
+
 std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
   const std::size_t n = mesh.triangle_count();
   struct {
@@ -74,8 +244,10 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
 
   // flip[t]: 0 keep, 1 rewind, kUnvisited not reached yet.
   std::vector<std::uint8_t> flip(n, kUnvisited);
+  std::vector<std::uint32_t> part_of(n);
   std::vector<std::uint32_t> part;  // the current part's triangles, in the order reached
-  std::size_t parts = 0, flipped = 0;
+  std::size_t parts = 0;
+  double edge_sum = 0.0;  // for the cells of agree_across_parts: the mean edge
   for (std::size_t seed = 0; seed < n; ++seed) {
     if (flip[seed] != kUnvisited) continue;
     ++parts;
@@ -85,7 +257,9 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
     for (std::size_t i = 0; i < part.size(); ++i) {
       const std::uint32_t t = part[i];
       const auto tri = mesh.triangle(t);
+      part_of[t] = static_cast<std::uint32_t>(parts - 1);
       (flip[t] ? area_flipped : area_kept) += area(mesh, tri);
+      edge_sum += (mesh.vertex(tri[1]) - mesh.vertex(tri[0])).norm();
       for (int k = 0; k < 3; ++k) {
         // Edge a -> b of t: its other triangle, if it is the only one, runs it b -> a
         // when wound like t, a -> b when wound the other way.
@@ -103,12 +277,16 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
       }
     }
     // The part keeps the winding most of its area has.
-    const bool invert = area_flipped > area_kept;
-    for (const std::uint32_t t : part) {
-      if (invert) flip[t] ^= 1;
-      flipped += flip[t];
-    }
+    if (area_flipped > area_kept)
+      for (const std::uint32_t t : part) flip[t] ^= 1;
   }
+  if (const double cell = 3.0 * edge_sum / static_cast<double>(n);
+      parts > 1 && cell > 0.0 && std::isfinite(cell)) {
+    const std::vector<std::uint8_t> rewind = agree_across_parts(mesh, part_of, flip, parts, cell);
+    for (std::size_t t = 0; t < n; ++t) flip[t] ^= rewind[part_of[t]];
+  }
+  std::size_t flipped = 0;
+  for (const std::uint8_t f : flip) flipped += f;
   if (flipped == 0) return std::nullopt;
 
   OrientedMesh out;

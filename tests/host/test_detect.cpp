@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <set>
@@ -93,43 +94,60 @@ TEST(Detect, TrianglesWoundEitherWayGiveTheSameFindings) {
   // neighbours wound opposite ways cancelled in the octree's normal sums, and parts wound
   // the other way read as a surface turned round, their dents as bumps (before: 3 and 4
   // of 10 found on a full door rewound in halves and at random, 6 and 7 of the wrong
-  // kind). Such a mesh is rewound consistently first; one wound the other way throughout
-  // is consistent, and left as it is.
-  const auto rewind_if = [](const std::function<bool(const ingest::Mesh&, const std::array<std::uint32_t, 3>&,
-                                                     std::size_t)>& which) {
-    return [which](ingest::Mesh& mesh) {
-      for (std::size_t i = 0; i < mesh.triangles.size(); ++i)
-        if (which(mesh, mesh.triangles[i], i)) std::swap(mesh.triangles[i][1], mesh.triangles[i][2]);
+  // kind; the same with the half on vertices of its own, as a second view). Such a mesh
+  // is rewound consistently first; one wound the other way throughout is consistent, and
+  // left as it is.
+  using Which = std::function<bool(const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t)>;
+  const auto rewind_if = [](const Which& which, bool own_vertices = false) {
+    return [which, own_vertices](ingest::Mesh& mesh) {
+      const std::size_t shared = mesh.vertices.size();
+      std::vector<std::uint32_t> copy(shared, 0);
+      for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+        auto& t = mesh.triangles[i];
+        if (!which(mesh, t, i)) continue;
+        std::swap(t[1], t[2]);
+        if (own_vertices)
+          for (auto& v : t)
+            if (v < shared) {
+              if (copy[v] == 0) {
+                copy[v] = static_cast<std::uint32_t>(mesh.vertices.size());
+                mesh.vertices.push_back(mesh.vertices[v]);
+              }
+              v = copy[v];
+            }
+      }
     };
   };
-  const auto every = [](const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t) {
+  const Which every = [](const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t) {
     return true;
   };
-  const auto at_random = [](const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t i) {
+  const Which at_random = [](const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t i) {
     return (i * 2654435761u >> 7) % 2 == 0;
   };
-  const auto right_half = [](const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t, std::size_t) {
+  const Which right_half = [](const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t, std::size_t) {
     return m.vertices[t[0]].x() > 0.0f;
   };
-  const auto a_patch = [](const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t, std::size_t) {
+  const Which a_patch = [](const ingest::Mesh& m, const std::array<std::uint32_t, 3>& t, std::size_t) {
     const Eigen::Vector3f& p = m.vertices[t[0]];
-    return std::abs(p.x() + 0.15f) < 0.04f && std::abs(p.y() + 0.12f) < 0.04f;  // round the first defect
+    return std::abs(p.x() + 0.15f) < 0.04f && std::abs(p.y() + 0.12f) < 0.04f;
   };
   struct Case {
     const char* name;
-    std::function<bool(const ingest::Mesh&, const std::array<std::uint32_t, 3>&, std::size_t)> which;
+    std::function<void(ingest::Mesh&)> change;
     bool rewound;
   };
-  for (const Case& c : {Case{"as scanned", {}, false}, Case{"all the other way", every, false},
-                        Case{"at random", at_random, true}, Case{"right half", right_half, true},
-                        Case{"a patch", a_patch, true}}) {
+  for (const Case& c :
+       {Case{"as scanned", {}, false}, Case{"all the other way", rewind_if(every), false},
+        Case{"at random", rewind_if(at_random), true}, Case{"right half", rewind_if(right_half), true},
+        Case{"right half, a view of its own", rewind_if(right_half, true), true},
+        Case{"a patch", rewind_if(a_patch), true}}) {
     SCOPED_TRACE(c.name);
-    const ScanRun r = c.which ? run(small_door(17), rewind_if(c.which)) : run(small_door(17));
+    const ScanRun r = run(small_door(17), c.change);
     EXPECT_EQ(r.eval.matched, 5);
     EXPECT_EQ(r.eval.false_alarms, 0);
     EXPECT_EQ(r.eval.wrong_sign, 0);
     EXPECT_EQ(r.det.stats.charts, 1u);
-    EXPECT_EQ(r.det.stats.rewound_triangles > 0, c.rewound);
+    EXPECT_EQ(r.det.stats.rewound_triangles > 0, c.rewound) << r.det.stats.rewound_triangles;
     EXPECT_LE(r.eval.max_position_error, 0.001);
   }
 }
@@ -955,6 +973,51 @@ TEST(Detect, APanelWrappedRoundIsInspectedInCharts) {
     scan.expect_found(det);
     for (const auto& f : det.features)  // the sides are no border features
       EXPECT_LT(f.defect.diameter, 0.1) << f.reason << " at " << f.defect.position.transpose();
+  }
+}
+
+// The mesh as `views` pieces of consecutive triangles on vertices of their own, as views
+// merged without fusing give it; the middle one wound the other way if `rewind_middle`.
+ingest::Mesh as_views(const ingest::Mesh& mesh, int views, bool rewind_middle) {
+  ingest::Mesh out;
+  out.triangles = mesh.triangles;
+  const std::size_t n = mesh.triangles.size();
+  for (int k = 0; k < views; ++k) {
+    std::vector<std::uint32_t> renumber(mesh.vertices.size(), std::numeric_limits<std::uint32_t>::max());
+    for (std::size_t i = n * k / views; i < n * (k + 1) / views; ++i) {
+      auto& t = out.triangles[i];
+      for (auto& v : t) {
+        if (renumber[v] == std::numeric_limits<std::uint32_t>::max()) {
+          renumber[v] = static_cast<std::uint32_t>(out.vertices.size());
+          out.vertices.push_back(mesh.vertices[v]);
+        }
+        v = renumber[v];
+      }
+      if (rewind_middle && k == views / 2) std::swap(t[1], t[2]);
+    }
+  }
+  return out;
+}
+
+TEST(Detect, AWrappedPanelMergedFromViewsWoundEitherWayIsInspectedAsOne) {
+  // The half cylinder below as three views that share no vertex: wound alike, the
+  // winding check finds nothing to do (and the scan is inspected as it was); with the
+  // middle view wound the other way, that view is rewound to agree with the others.
+  const double R = 0.25;
+  std::vector<Planted> planted;
+  for (const double degrees : {-62.0, -35.0, 0.0, 33.0, 60.0})
+    planted.push_back({R * degrees * std::numbers::pi / 180.0, degrees > 0 ? 0.05 : -0.04, 0.02,
+                       degrees > 0 ? -1.2e-4 : 1.5e-4});
+  const WrappedScan scan{R, R * 3.0, 0.0, planted};
+  const ingest::Mesh whole = scan.mesh(0.0006);
+  for (const bool rewind_middle : {false, true}) {
+    SCOPED_TRACE(rewind_middle);
+    const ingest::Mesh views = as_views(whole, 3, rewind_middle);
+    const detect::Detection det = detect::detect(views, detect::DetectConfig{});
+    EXPECT_GE(det.stats.charts, 2u);
+    const std::size_t n = whole.triangles.size();
+    EXPECT_EQ(det.stats.rewound_triangles, rewind_middle ? n * 2 / 3 - n / 3 : 0u);
+    scan.expect_found(det);
   }
 }
 

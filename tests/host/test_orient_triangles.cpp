@@ -173,6 +173,49 @@ TEST(OrientTriangles, EachPartKeepsItsOwnWinding) {
         << i;
 }
 
+// A sheet like add_sheet's, n x n vertices from (x0, y0), lifted by dz; wound towards
+// +z, or towards -z.
+void add_plane(Mesh& mesh, int n, float x0, float y0, float dz, bool up) {
+  const auto base = static_cast<std::uint32_t>(mesh.vertices.size());
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) mesh.vertices.emplace_back(x0 + 1e-3f * i, y0 + 1e-3f * j, 0.5f + dz);
+  const auto at = [&](int i, int j) { return base + static_cast<std::uint32_t>(j * n + i); };
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) {
+      std::array<std::uint32_t, 3> a{at(i, j), at(i + 1, j), at(i + 1, j + 1)},
+          b{at(i, j), at(i + 1, j + 1), at(i, j + 1)};
+      if (!up) std::swap(a[1], a[2]), std::swap(b[1], b[2]);
+      mesh.triangles.push_back(a);
+      mesh.triangles.push_back(b);
+    }
+}
+
+TEST(OrientTriangles, ViewsMergedWithoutSharedEdgesAreWoundAlike) {
+  // Three views of one plane, each on vertices of its own: two overlap the first by 5 mm
+  // (one 10 µm off it, as registration leaves them), one abuts it across a 0.4 mm gap;
+  // the smaller two are wound the other way.
+  Mesh m;
+  add_plane(m, 50, 0.0f, 0.0f, 0.0f, true);
+  const std::size_t second = m.triangles.size();
+  add_plane(m, 30, 0.044f, 0.01f, 1e-5f, false);
+  add_plane(m, 30, 0.01f, 0.0494f, 0.0f, false);
+  EXPECT_FALSE(has_opposed_neighbours(m));
+  EXPECT_EQ(large_parts(m, 100), 3u);
+  const auto oriented = orient_consistently(m);
+  ASSERT_TRUE(oriented.has_value());
+  EXPECT_EQ(oriented->flipped, m.triangles.size() - second);
+  for (const auto& t : oriented->mesh.triangles) ASSERT_GT(normal(oriented->mesh, t).z(), 0.0f);
+}
+
+TEST(OrientTriangles, TheTwoSidesOfASheetStayWoundOutwards) {
+  // The outer and inner skin of a 0.8 mm sheet, both scanned, each wound outwards:
+  // opposite normals on two planes, not one surface wound two ways.
+  Mesh m;
+  add_plane(m, 40, 0.0f, 0.0f, 0.0f, true);
+  add_plane(m, 40, 0.0f, 0.0f, -8e-4f, false);
+  EXPECT_FALSE(orient_consistently(m).has_value());
+}
+
 TEST(OrientTriangles, FinsOnOneEdgeAndDegenerateTrianglesLinkNothing) {
   // Three triangles on one edge (a non-manifold fin), and a triangle with a repeated
   // corner, beside a sheet: nothing to rewind, nothing read out of bounds.
