@@ -272,6 +272,9 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
           other = c.triangle, same_way = c.next == b, ++others;
         }
         if (others != 1 || flip[other] != kUnvisited) continue;
+        // Run the same way yet facing the same side, the two overlap (views' or charts'
+        // triangulations meeting) rather than lie side by side: no evidence either way.
+        if (same_way && area_normal(mesh, tri).dot(area_normal(mesh, mesh.triangle(other))) > 0.0f) continue;
         flip[other] = static_cast<std::uint8_t>(flip[t] ^ same_way);
         part.push_back(other);
       }

@@ -216,6 +216,21 @@ TEST(OrientTriangles, TheTwoSidesOfASheetStayWoundOutwards) {
   EXPECT_FALSE(orient_consistently(m).has_value());
 }
 
+TEST(OrientTriangles, TrianglesFoldedOntoTheirNeighboursAreNoEvidence) {
+  // Along one border of a sheet, triangles on the border's edges that lie back over the
+  // sheet (two triangulations meeting and overlapping): each runs its edge the way the
+  // sheet's triangle does, yet faces the same side. They are not wound the wrong way.
+  Mesh m;
+  add_plane(m, 20, 0.0f, 0.0f, 0.0f, true);
+  for (std::uint32_t i = 0; i + 1 < 20; ++i) {
+    const auto v = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.emplace_back(1e-3f * (static_cast<float>(i) + 0.5f), 0.6e-3f, 0.5f);
+    m.triangles.push_back({i, i + 1, v});
+  }
+  EXPECT_TRUE(has_opposed_neighbours(m));  // (worth the walk)
+  EXPECT_FALSE(orient_consistently(m).has_value());
+}
+
 TEST(OrientTriangles, FinsOnOneEdgeAndDegenerateTrianglesLinkNothing) {
   // Three triangles on one edge (a non-manifold fin), and a triangle with a repeated
   // corner, beside a sheet: nothing to rewind, nothing read out of bounds.

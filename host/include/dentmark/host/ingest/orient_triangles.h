@@ -31,8 +31,9 @@ std::size_t large_parts(const MeshView& mesh, std::size_t min_triangles);
 
 // Walks the triangles across their manifold edges (an edge shared by exactly two
 // triangles); a triangle agrees with a neighbour when the two run the shared edge in
-// opposite directions. Edges of three or more triangles, and degenerate triangles, link
-// nothing. Parts that share no edge but meet on one surface (overlapping or abutting,
+// opposite directions. Edges of three or more triangles, degenerate triangles, and two
+// that run their edge the same way but face the same side (they overlap, folded onto
+// each other) link nothing. Parts that share no edge but meet on one surface (overlapping or abutting,
 // normals parallel or opposite, not the two sides of a sheet) are wound alike. Each part,
 // or group of parts so linked, keeps the winding of the larger area of it. Returns
 // nothing when all is consistent already.
