@@ -43,6 +43,13 @@ Format resolve_format(const std::string& path, std::string_view bytes, const Rea
   return format;
 }
 
+// Triangles that keep their own corners (a PLY or OBJ written from STL, say) share no
+// vertex: a mesh has about half as many vertices as triangles, a soup three times as
+// many. Its coincident corners are welded (weld_vertices): the rewinding walks shared edges.
+bool is_triangle_soup(std::size_t vertices, std::size_t triangles) {
+  return triangles > 0 && 2 * vertices > 5 * triangles;
+}
+
 Mesh read_mapped(const std::string& path, std::string_view bytes, Format format, const ReadOptions& options) {
   Mesh mesh;
   switch (format) {
@@ -88,6 +95,7 @@ Mesh read_mapped(const std::string& path, std::string_view bytes, Format format,
     });
     mesh.dropped_faces += before - mesh.triangles.size();
   }
+  if (is_triangle_soup(mesh.vertices.size(), mesh.triangles.size())) detail::weld_vertices(mesh);
   if (mesh.triangles.empty()) {
     // Organized clouds (a point per camera pixel) may mark a pixel without a measurement
     // by a point at the sensor, (0, 0, 0), instead of NaN: no surface is there. (At most
@@ -122,7 +130,8 @@ Scan open_scan(const std::string& path, const ReadOptions& options) {
   const Format format = resolve_format(path, file->view(), options);
   Scan scan;
   if (format == Format::kPly) {
-    if (auto view = detail::ply_in_place(path, file->view(), static_cast<float>(options.scale_to_m))) {
+    if (auto view = detail::ply_in_place(path, file->view(), static_cast<float>(options.scale_to_m));
+        view && !is_triangle_soup(view->vertex_count(), view->triangle_count())) {
       scan.mesh = *view;
       scan.input_points = view->vertex_count();
       scan.in_place = true;

@@ -217,9 +217,8 @@ TEST(Ingest, StlCornersAtOnePositionAreOneVertexAndOthersStayApart) {
   std::string b(80, ' ');
   put<std::uint32_t>(b, 3);
   const float next = std::nextafter(1.0f, 2.0f);
-  const float facets[3][9] = {{0, 0, 0, 1, 0, 0, 1, 1, 0},
-                              {-0.0f, 0, 0, 1, 1, 0, 0, 1, 0},
-                              {next, 0, 0, next, 1, 0, 2, 0, 0}};
+  const float facets[3][9] = {
+      {0, 0, 0, 1, 0, 0, 1, 1, 0}, {-0.0f, 0, 0, 1, 1, 0, 0, 1, 0}, {next, 0, 0, next, 1, 0, 2, 0, 0}};
   for (const auto& f : facets) {
     for (int k = 0; k < 3; ++k) put<float>(b, 0.0f);
     for (const float x : f) put<float>(b, x);
@@ -688,6 +687,51 @@ std::string scanner_ply(const std::string& index_type, float poison = 0.0f, int 
   return s;
 }
 
+// The reference triangles as a soup (each with its own three corners) in the scanner's
+// binary layout, or as ascii.
+std::string soup_ply(bool binary) {
+  const int tris[3][3] = {{0, 1, 2}, {0, 2, 3}, {1, 4, 2}};
+  std::string s = std::string("ply\nformat ") + (binary ? "binary_little_endian" : "ascii") +
+                  " 1.0\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\n"
+                  "element face 3\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& t : tris)
+    for (const int i : t) {
+      if (binary)
+        for (int a = 0; a < 3; ++a) put<float>(s, kV[i][a]);
+      else
+        s +=
+            std::to_string(kV[i][0]) + " " + std::to_string(kV[i][1]) + " " + std::to_string(kV[i][2]) + "\n";
+    }
+  for (int t = 0; t < 3; ++t) {
+    if (binary) {
+      put<std::uint8_t>(s, 3);
+      for (int k = 0; k < 3; ++k) put<std::int32_t>(s, 3 * t + k);
+    } else {
+      s += "3 " + std::to_string(3 * t) + " " + std::to_string(3 * t + 1) + " " + std::to_string(3 * t + 2) +
+           "\n";
+    }
+  }
+  return s;
+}
+
+TEST(Scan, ATriangleSoupIsWeldedInEveryFormat) {
+  // A PLY written from STL keeps every triangle's own corners: no two triangles share an
+  // edge. Such a file is read (not used in place) and its coincident corners welded.
+  for (const bool binary : {true, false}) {
+    SCOPED_TRACE(binary);
+    const Scan scan = open_scan(write_file("soup.ply", soup_ply(binary)));
+    EXPECT_FALSE(scan.in_place);
+    EXPECT_EQ(scan.input_points, 9u);  // as in the file
+    ASSERT_EQ(scan.mesh.vertex_count(), 5u);
+    ASSERT_EQ(scan.mesh.triangle_count(), 3u);
+    const int tris[3][3] = {{0, 1, 2}, {0, 2, 3}, {1, 4, 2}};
+    for (int t = 0; t < 3; ++t)
+      for (int c = 0; c < 3; ++c)
+        for (int a = 0; a < 3; ++a)
+          EXPECT_FLOAT_EQ(scan.mesh.vertex(scan.mesh.triangle(t)[c])[a], kV[tris[t][c]][a]);
+  }
+}
+
 TEST(Scan, ScannerLayoutIsUsedInPlace) {
   for (const std::string type : {"int", "uint"}) {
     const Scan scan = open_scan(write_file("s1.ply", scanner_ply(type)));
@@ -755,7 +799,8 @@ TEST(Scan, RandomMeshesReadTheSameInPlaceAndCopied) {
   std::mt19937 rng(7);
   for (int trial = 0; trial < 20; ++trial) {
     Mesh m;
-    const int nv = 3 + static_cast<int>(rng() % 200), nt = 1 + static_cast<int>(rng() % 400);
+    // (At least half as many triangles as vertices: a soup is welded, not used in place.)
+    const int nv = 3 + static_cast<int>(rng() % 200), nt = 1 + nv / 2 + static_cast<int>(rng() % 400);
     std::uniform_real_distribution<float> u(-2.0f, 2.0f);
     for (int i = 0; i < nv; ++i) m.vertices.emplace_back(u(rng), u(rng), u(rng));
     for (int t = 0; t < nt; ++t)
