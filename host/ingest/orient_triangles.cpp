@@ -94,8 +94,9 @@ class ParityUnion {
 // Parts that share no edge (views merged side by side or overlapping, pieces joined at a
 // vertex) but lie on one surface: where two parts meet in a cell of `cell` metres, on one
 // plane (their centroids within kOnePlane and a quarter cell along the normal: not the
-// two sides of a sheet) with parallel or opposite normals, they should be wound alike. Each group of
-// parts so linked, strongest links first, is wound like the larger area of it.
+// two sides of a sheet) with parallel or opposite normals, they should be wound alike.
+// Each group of parts so linked, strongest links first, is wound like the larger area
+// of it.
 // part[t]: t's edge-connected part; flip[t]: its winding within the part (0 or 1).
 // Returns per part whether to rewind it as a whole.
 std::vector<std::uint8_t> agree_across_parts(const MeshView& mesh, const std::vector<std::uint32_t>& part,
