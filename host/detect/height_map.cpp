@@ -18,6 +18,48 @@ namespace {
 // ray; no scanner measures a surface more nearly edge-on).
 constexpr float kFacingSensor = 0.1f;
 
+// A panel that falls away from its plane by this much (m) over its mean radius is clearly
+// convex on one side (a door of 3 m radius, 1 m across: ~30 mm; a flat roof's middle
+// at 10 m: ~10 mm).
+constexpr double kClearBulge = 2e-3;
+
+// A body panel bulges outwards: a door, hood, roof or fender is convex on the side that
+// faces the world. How far the surface falls away from its plane's normal w over the
+// leaves `use` selects (m; positive when it bulges towards +w): h = (x - c) . w fitted
+// as a + b r² over the leaves, r their distance from c across w, read at the leaves'
+// mean r². A flat or saddle-shaped panel gives about 0.
+template <class Use>
+double bulge_towards(const OctreeLeaves& leaves, Use use, const Eigen::Vector3d& c, const Eigen::Vector3d& w,
+                     double max_leaf_area) {
+  constexpr std::int64_t kChunks = 64;  // fixed chunks summed in order: the same bits on any threads
+  struct Sums {
+    double a = 0.0, h = 0.0, r2 = 0.0, hr2 = 0.0, r4 = 0.0;
+  };
+  std::vector<Sums> chunk(kChunks);
+  const auto count = static_cast<std::int64_t>(leaves.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t ch = 0; ch < kChunks; ++ch) {
+    Sums& cs = chunk[static_cast<std::size_t>(ch)];
+    for (std::int64_t i = count * ch / kChunks; i < count * (ch + 1) / kChunks; ++i) {
+      if (!use(static_cast<std::size_t>(i))) continue;
+      const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
+      const double a = std::min(static_cast<double>(l.area), max_leaf_area);
+      const Eigen::Vector3d d = l.centroid.cast<double>() - c;
+      const double h = d.dot(w), r2 = d.squaredNorm() - h * h;
+      cs.a += a, cs.h += a * h, cs.r2 += a * r2, cs.hr2 += a * h * r2, cs.r4 += a * r2 * r2;
+    }
+  }
+  Sums all;
+  for (const Sums& cs : chunk)
+    all.a += cs.a, all.h += cs.h, all.r2 += cs.r2, all.hr2 += cs.hr2, all.r4 += cs.r4;
+  if (!(all.a > 0.0)) return 0.0;
+  const double mean_r2 = all.r2 / all.a;
+  const double var_r2 = all.r4 / all.a - mean_r2 * mean_r2;
+  if (!(var_r2 > 0.0)) return 0.0;
+  const double slope = (all.hr2 / all.a - all.h / all.a * mean_r2) / var_r2;  // dh / d(r²)
+  return -slope * mean_r2;
+}
+
 // Where the surface runs steeply through the octree's grid (a chart's side at 45 degrees
 // to it), the leaves' centroids fall in steps, and a pixel between two surface pixels
 // can get none: on a curved side whole columns of such pixels, which read as a cut
@@ -132,6 +174,13 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     // sensor's (a profiler's or a part's frame): then towards the side the triangles face.
     const double side = w.dot(-c);
     if (std::abs(side) > 0.1 ? side < 0 : w.dot(S) < 0) w = -w;
+    // An origin on the side the triangles face away from is a sensor's whose mesh is
+    // wound the other way, or no sensor's at all (a vehicle's or a part's frame, its
+    // origin inside the body): there the side the panel bulges to is its outside. (From
+    // the inside every dent reads as a bump.)
+    if (!chart && std::abs(side) > 0.1 && S.norm() > 0.1 * A && w.dot(S) < 0.0 &&
+        bulge_towards(leaves, use, c, w, max_leaf_area) < -kClearBulge)
+      w = -w;
     // A chart's map looks the way the whole scan's does: to chart_w's side. (Square along
     // the chart's axis instead of the fit's plane: 5 false alarms more over the other
     // generator's fenders, one dent's depth 0.27 mm better; the plane leaned 15-20 degrees

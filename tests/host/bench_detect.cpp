@@ -8,6 +8,10 @@
 //                           (1200 x 950 pixels of 1 mm): a fit, then a refit without a
 //                           dozen defects, as detection does (items/s = pixels fitted/s).
 //   BM_QualityOverSeeds:    recall / false alarms / errors over many seeds (counters).
+//   BM_WindingCheck:        the winding check a wrapped scan pays (opposed neighbours and
+//                           parts), on the ~9 M-triangle door (items/s = triangles/s).
+//   BM_Rewind:              rewinding that door after half its triangles were rewound at
+//                           random (orient_consistently; items/s = triangles/s).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -21,6 +25,7 @@
 #include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/detect/reference_surface.h"
 #include "dentmark/host/ingest/mesh_writer.h"
+#include "dentmark/host/ingest/orient_triangles.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/report/defects_json.h"
 #include "dentmark/host/report/evaluate.h"
@@ -92,6 +97,38 @@ void BM_OctreeBuild(benchmark::State& state) {
   state.counters["leaves"] = static_cast<double>(leaves);
 }
 BENCHMARK(BM_OctreeBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+
+void BM_WindingCheck(benchmark::State& state) {
+  const ingest::Mesh& mesh = big_mesh(false);
+  bool opposed = true;
+  std::size_t parts = 0;
+  for (auto _ : state) {
+    opposed = ingest::has_opposed_neighbours(mesh);
+    parts = ingest::large_parts(mesh, mesh.triangles.size() / 100);
+  }
+  if (opposed || parts != 1) state.SkipWithError("the door should be one consistent part");
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * mesh.triangles.size()));
+}
+BENCHMARK(BM_WindingCheck)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+
+void BM_Rewind(benchmark::State& state) {
+  static const ingest::Mesh rewound = [] {
+    ingest::Mesh m = big_mesh(false);
+    std::mt19937 rng(3);
+    for (auto& t : m.triangles)
+      if (rng() & 1) std::swap(t[1], t[2]);
+    return m;
+  }();
+  std::size_t flipped = 0;
+  for (auto _ : state) {
+    const auto oriented = ingest::orient_consistently(rewound);
+    flipped = oriented ? oriented->flipped : 0;
+    benchmark::DoNotOptimize(oriented);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * rewound.triangles.size()));
+  state.counters["rewound"] = static_cast<double>(flipped);
+}
+BENCHMARK(BM_Rewind)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 void BM_ReadDetectWrite(benchmark::State& state) {
   const std::string dir = std::filesystem::temp_directory_path().string();

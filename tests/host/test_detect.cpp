@@ -152,6 +152,51 @@ TEST(Detect, TrianglesWoundEitherWayGiveTheSameFindings) {
   }
 }
 
+TEST(Detect, AScanInAFrameWhoseOriginIsInsideTheBodyKeepsDentsAsDents) {
+  // The same door in a vehicle's or a part's frame: turned half round about a vertical
+  // axis 0.5 m behind the panel, so that the origin lies 1 m behind it, on the side its
+  // triangles face away from. Taken for a sensor there, it looked at the panel from the
+  // inside, and every dent read as a bump (5 of 5). The panel bulges outwards: that
+  // decides when the origin and the triangles disagree. A sensor-frame mesh wound the
+  // other way throughout (the origin right, the triangles not) stays as it was.
+  sim::scan::SynthScan scan = sim::scan::synthesize_scan(small_door(19));
+  double depth = 0.0;
+  for (const auto& v : scan.vertices) depth += v.z();
+  const double c = depth / static_cast<double>(scan.vertices.size()) + 0.5;
+  const auto turn = [c](const Eigen::Vector3d& p) { return Eigen::Vector3d(-p.x(), p.y(), 2.0 * c - p.z()); };
+  for (const bool turned : {false, true})
+    for (const bool rewound : {false, true}) {
+      SCOPED_TRACE(std::string(turned ? "turned" : "sensor frame") + (rewound ? ", rewound" : ""));
+      ingest::Mesh mesh;
+      mesh.vertices = scan.vertices;
+      mesh.triangles = scan.triangles;
+      report::TruthFile truth = report::truth_from_scan(scan);
+      if (turned) {
+        for (auto& v : mesh.vertices) v = turn(v.cast<double>()).cast<float>();
+        for (auto& d : truth.defects) {
+          d.defect.position = turn(d.defect.position);
+          d.defect.normal = Eigen::Vector3d(-d.defect.normal.x(), d.defect.normal.y(), -d.defect.normal.z());
+        }
+        for (auto& f : truth.features)
+          for (auto& p : f.points) p = turn(p);
+      }
+      if (rewound)
+        for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
+      const detect::Detection det = detect::detect(mesh, detect::DetectConfig{});
+      report::DefectsFile found;
+      for (const auto& f : det.defects)
+        found.defects.push_back({report::class_name(f.defect.defect_class), f.defect});
+      const report::Evaluation eval = report::evaluate(truth, found);
+      // A turned scan wound the other way is a sensor's view of the panel's inside (the
+      // triangles face the origin): there the origin is believed, and its dents are bumps.
+      const bool inside = turned && rewound;
+      EXPECT_EQ(eval.matched, inside ? 0 : 5);
+      EXPECT_EQ(eval.wrong_sign, inside ? 5 : 0);
+      EXPECT_EQ(eval.false_alarms - eval.wrong_sign, 0);
+      EXPECT_LE(eval.max_position_error, 0.001);
+    }
+}
+
 TEST(Detect, MeshedOutlierSpikesNeitherHideNorFakeDefects) {
   // A mesher without an edge-length filter keeps an outlier's triangles: a spike of
   // 2-20 mm on one vertex, its six triangles 50-400 times a normal one's area. About one
