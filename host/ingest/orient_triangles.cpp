@@ -97,15 +97,15 @@ class ParityUnion {
 // two sides of a sheet) with parallel or opposite normals, they should be wound alike.
 // Each group of parts so linked, strongest links first, is wound like the larger area
 // of it.
-// part[t]: t's edge-connected part; flip[t]: its winding within the part (0 or 1).
+// part[t]: t's edge-connected part; flip[t]: its winding within the part (0 or 1);
+// part_area[p]: part p's area.
 // Returns per part whether to rewind it as a whole.
 std::vector<std::uint8_t> agree_across_parts(const MeshView& mesh, const std::vector<std::uint32_t>& part,
-                                             const std::vector<std::uint8_t>& flip, std::size_t parts,
-                                             double cell) {
+                                             const std::vector<std::uint8_t>& flip,
+                                             const std::vector<double>& part_area, double cell) {
   constexpr std::size_t kMinPartTriangles = 8;  // fewer give no normal to speak of
-  const std::size_t n = mesh.triangle_count();
+  const std::size_t n = mesh.triangle_count(), parts = part_area.size();
   std::vector<std::size_t> size(parts, 0);
-  std::vector<double> part_area(parts, 0.0);
   for (std::size_t t = 0; t < n; ++t) ++size[part[t]];
 
   // (cell, part) per triangle of the parts large enough, sorted: each cell's parts together.
@@ -178,7 +178,6 @@ std::vector<std::uint8_t> agree_across_parts(const MeshView& mesh, const std::ve
   for (const auto& [e, pq] : links) groups.join(pq.first, pq.second, e < 0 ? 1 : 0);
 
   // Each group wound like the larger area of it.
-  for (std::size_t t = 0; t < n; ++t) part_area[part[t]] += area(mesh, mesh.triangle(t));
   std::vector<double> area_kept(parts, 0.0), area_rewound(parts, 0.0);
   std::vector<std::uint8_t> parity(parts);
   std::vector<std::size_t> root(parts);
@@ -213,21 +212,13 @@ bool has_opposed_neighbours(const MeshView& mesh) {
 }
 
 std::size_t large_parts(const MeshView& mesh, std::size_t min_triangles) {
-  // Union-find over the vertices, each triangle joining its corners.
-  std::vector<std::uint32_t> parent(mesh.vertex_count());
-  std::iota(parent.begin(), parent.end(), 0u);
-  const auto find = [&](std::uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
+  ParityUnion parts(mesh.vertex_count());  // (no parities here: each triangle joins its corners)
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
     const auto tri = mesh.triangle(t);
-    const std::uint32_t r = find(tri[0]);
-    for (int k = 1; k < 3; ++k)
-      if (const std::uint32_t o = find(tri[k]); o != r) parent[o] = r;
+    parts.join(tri[0], tri[1], 0), parts.join(tri[0], tri[2], 0);
   }
   std::vector<std::uint32_t> triangles(mesh.vertex_count(), 0);
-  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) ++triangles[find(mesh.triangle(t)[0])];
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) ++triangles[parts.find(mesh.triangle(t)[0]).first];
   return static_cast<std::size_t>(
       std::count_if(triangles.begin(), triangles.end(), [&](std::uint32_t c) { return c >= min_triangles; }));
 }
@@ -247,18 +238,18 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
   std::vector<std::uint8_t> flip(n, kUnvisited);
   std::vector<std::uint32_t> part_of(n);
   std::vector<std::uint32_t> part;  // the current part's triangles, in the order reached
-  std::size_t parts = 0;
-  double edge_sum = 0.0;  // for the cells of agree_across_parts: the mean edge
+  std::vector<double> part_area;    // per part
+  double edge_sum = 0.0;            // for the cells of agree_across_parts: the mean edge
   for (std::size_t seed = 0; seed < n; ++seed) {
     if (flip[seed] != kUnvisited) continue;
-    ++parts;
+    const auto this_part = static_cast<std::uint32_t>(part_area.size());
     part.assign(1, static_cast<std::uint32_t>(seed));
     flip[seed] = 0;
     double area_kept = 0.0, area_flipped = 0.0;
     for (std::size_t i = 0; i < part.size(); ++i) {
       const std::uint32_t t = part[i];
       const auto tri = mesh.triangle(t);
-      part_of[t] = static_cast<std::uint32_t>(parts - 1);
+      part_of[t] = this_part;
       (flip[t] ? area_flipped : area_kept) += area(mesh, tri);
       edge_sum += (mesh.vertex(tri[1]) - mesh.vertex(tri[0])).norm();
       for (int k = 0; k < 3; ++k) {
@@ -283,10 +274,11 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
     // The part keeps the winding most of its area has.
     if (area_flipped > area_kept)
       for (const std::uint32_t t : part) flip[t] ^= 1;
+    part_area.push_back(area_kept + area_flipped);
   }
   if (const double cell = 3.0 * edge_sum / static_cast<double>(n);
-      parts > 1 && cell > 0.0 && std::isfinite(cell)) {
-    const std::vector<std::uint8_t> rewind = agree_across_parts(mesh, part_of, flip, parts, cell);
+      part_area.size() > 1 && cell > 0.0 && std::isfinite(cell)) {
+    const std::vector<std::uint8_t> rewind = agree_across_parts(mesh, part_of, flip, part_area, cell);
     for (std::size_t t = 0; t < n; ++t) flip[t] ^= rewind[part_of[t]];
   }
   std::size_t flipped = 0;
@@ -295,7 +287,7 @@ std::optional<OrientedMesh> orient_consistently(const MeshView& mesh) {
 
   OrientedMesh out;
   out.flipped = flipped;
-  out.parts = parts;
+  out.parts = part_area.size();
   out.mesh.vertices.resize(mesh.vertex_count());
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) out.mesh.vertices[v] = mesh.vertex(v);
   out.mesh.triangles.resize(n);
