@@ -111,8 +111,6 @@ Detection start_over(const ingest::MeshView& input, const DetectConfig& cfg, dou
   return again;
 }
 
-// detect() on samples 'spacing' apart. remeasure: when a background is found, measure
-// the spacing again on the panel alone and start over if it differs.
 // Signs that neighbouring triangles are wound opposite ways: their normals cancel in the
 // sums (eq. 1-3), so leaves straddling a change of winding look like sharp folds, and an
 // inverted part's normals point 180° away from the rest, which reads as a surface that
@@ -128,6 +126,9 @@ bool winding_suspect(const LinearOctree& tree, double noise_floor_sigma, const C
   return static_cast<double>(opposed) > kOpposedLeafShare * static_cast<double>(leaves.size());
 }
 
+// detect() on samples 'spacing' apart. remeasure: when a background is found, measure
+// the spacing again on the panel alone and start over if it differs. check_winding: when
+// the octree shows signs of triangles wound opposite ways, rewind them and start over.
 Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& cfg, double spacing,
                             bool remeasure, bool check_winding) {
   const auto start = Clock::now();
