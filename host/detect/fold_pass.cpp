@@ -124,24 +124,6 @@ std::vector<float> ReferenceSurface::fold_shares() const {
   return share;
 }
 
-bool ReferenceSurface::blended_mean_square(int r, int c, double& mean_square) const {
-  // As blend(): the fits at tiles (iy + dy, ix + dx), weighted bilinearly (+ 1e-9).
-  const int T = tile_;
-  const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
-  const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
-  const double ay = fy - iy, ax = fx - ix;
-  double ms = 0.0, ws = 0.0;
-  for (int n = 0; n < 4; ++n) {
-    const Quadratic& q = fits_[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
-                               std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
-    if (!q.ok) return false;
-    const double w = (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) + 1e-9;
-    ms += w * q.mean_square, ws += w;
-  }
-  mean_square = ms / ws;
-  return true;
-}
-
 // One thread's working arrays for a tile and the kEvidence pixels around it (side x side),
 // candidate d's at [d][y][x].
 struct ReferenceSurface::FoldScratch {
@@ -154,15 +136,21 @@ struct ReferenceSurface::FoldScratch {
         weight(f.size()),
         z(static_cast<std::size_t>(side * side)),
         w(z.size()),
+        weighed(z.size()),
         mono(6 * z.size()),
         shares(static_cast<std::size_t>(tile * tile)),
         across(static_cast<std::size_t>(2 * side * tile)),
         sums(static_cast<std::size_t>(2 * kCandidates * tile * tile)) {}
   int side;
+  // Per row and column of the square: the lower of its pixels' two nearest rows and
+  // columns of tile centres, and its fraction of the way to the next (as in blend()).
+  int row_tile[kMaxSide], col_tile[kMaxSide];
+  double row_frac[kMaxSide], col_frac[kMaxSide];
   std::vector<double> f, ms;  // the candidate's height and its windows' mean square
   std::vector<std::uint8_t> have;
   std::vector<double> resid, weight;  // its weighted squared residual and weight (0: none)
   std::vector<double> z, w;           // the map's heights and weights (0 off the map)
+  std::vector<std::uint8_t> weighed;  // w > 0
   std::vector<double> mono;           // [i][y][x]: 1, X, Y, X², XY, Y² about the tile's centre
   std::vector<double> shares;
   std::vector<double> across;  // the evidence's sums along rows: [residual or weight][y][x]
@@ -192,7 +180,10 @@ void ReferenceSurface::fold_pass() {
   if (tile_ + 2 * kEvidence > kMaxSide) return;
   // Per pixel of those tiles: its share and its candidates (the eight side windows' fits
   // and its own blend), with their weights where the pixels around gave evidence.
-  std::vector<std::vector<FoldPixel>> found(tiles.size());
+  // (One block of T² per tile, each tile's pixels first: no allocation in the threads.)
+  const std::size_t per_tile = static_cast<std::size_t>(tile_) * tile_;
+  std::vector<FoldPixel> found(tiles.size() * per_tile);
+  std::vector<int> found_count(tiles.size(), 0);
 #pragma omp parallel
   {
     FoldScratch scratch(tile_);
@@ -201,12 +192,13 @@ void ReferenceSurface::fold_pass() {
       const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
       if (!fold_tile_shares(tx, ty, share, scratch)) continue;
       fold_candidates(tx, ty, scratch);
-      fold_evidence(tx, ty, scratch, found[i]);
+      found_count[i] = fold_evidence(tx, ty, scratch, found.data() + i * per_tile);
     }
   }
   std::vector<FoldPixel*> pixels;  // (pointers: the lists are large)
-  for (auto& list : found)
-    for (FoldPixel& px : list) pixels.push_back(&px);
+  for (std::size_t i = 0; i < tiles.size(); ++i)
+    for (int j = 0; j < found_count[i]; ++j)
+      pixels.push_back(&found[i * per_tile + static_cast<std::size_t>(j)]);
   mark_fold_lines(pixels);
   fill_fold_weights(pixels);
   for (const FoldPixel* p : pixels) {
@@ -222,19 +214,25 @@ void ReferenceSurface::fold_pass() {
 }
 
 // The tile's pixels' shares: the bilinear blend of their four nearest tiles'. False if
-// none has a share.
+// none has a share. Also fills the scratch's rows and columns of tile centres.
 bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>& share,
                                         FoldScratch& fs) const {
-  const int T = tile_;
+  const int T = tile_, e = kEvidence, side = fs.side;
+  const int r0 = ty * T - e, c0 = tx * T - e;
+  for (int x = 0; x < side; ++x) {
+    const double fx = (c0 + x + 0.5) / T - 0.5;
+    fs.col_tile[x] = static_cast<int>(std::floor(fx)), fs.col_frac[x] = fx - fs.col_tile[x];
+    const double fy = (r0 + x + 0.5) / T - 0.5;
+    fs.row_tile[x] = static_cast<int>(std::floor(fy)), fs.row_frac[x] = fy - fs.row_tile[x];
+  }
   bool any = false;
   for (int y = 0; y < T; ++y)
     for (int x = 0; x < T; ++x) {
       const int r = ty * T + y, c = tx * T + x;
       double a = 0.0;
       if (r < map_.rows && c < map_.cols) {
-        const double fy = (r + 0.5) / T - 0.5, fx = (c + 0.5) / T - 0.5;
-        const int iy = static_cast<int>(std::floor(fy)), ix = static_cast<int>(std::floor(fx));
-        const double ay = fy - iy, ax = fx - ix;
+        const int iy = fs.row_tile[y + e], ix = fs.col_tile[x + e];
+        const double ay = fs.row_frac[y + e], ax = fs.col_frac[x + e];
         for (int n = 0; n < 4; ++n)
           a += (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) *
                share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
@@ -246,25 +244,61 @@ bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>
   return any;
 }
 
+namespace {
+
+// Over a run of pixels that share their four nearest tiles: the blend (A + ax B) /
+// (wa + ax wb) of the quadratics A and B at the pixels (monomials X ... YY), and the same
+// of the fits' mean squares. Separate so that it vectorises.
+[[gnu::always_inline]] inline void blend_run(int n, const double* __restrict X, const double* __restrict Y,
+                                             const double* __restrict XX, const double* __restrict XY,
+                                             const double* __restrict YY, const double* __restrict ax,
+                                             const double (&A)[6], const double (&B)[6], double mA, double mB,
+                                             double wa, double wb, double* __restrict f,
+                                             double* __restrict ms) {
+  for (int x = 0; x < n; ++x) {
+    const double a = A[0] + A[1] * X[x] + A[2] * Y[x] + A[3] * XX[x] + A[4] * XY[x] + A[5] * YY[x];
+    const double b = B[0] + B[1] * X[x] + B[2] * Y[x] + B[3] * XX[x] + B[4] * XY[x] + B[5] * YY[x];
+    const double inv = 1.0 / (wa + ax[x] * wb);
+    f[x] = (a + ax[x] * b) * inv, ms[x] = (mA + ax[x] * mB) * inv;
+  }
+}
+
+// Each candidate's weighted squared residual and weight per pixel (0 without it).
+[[gnu::always_inline]] inline void evidence_terms(std::size_t n, const double* __restrict z,
+                                                  const double* __restrict w, const double* __restrict f,
+                                                  const std::uint8_t* __restrict have,
+                                                  double* __restrict resid, double* __restrict weight) {
+  for (std::size_t p = 0; p < n; ++p) {
+    const double dz = z[p] - f[p];
+    resid[p] = have[p] ? w[p] * dz * dz : 0.0;
+    weight[p] = have[p] ? w[p] : 0.0;
+  }
+}
+
+// Rows y .. y + 2 kEvidence of the row sums (T apart, from ar and aw) added down
+// columns, in order, to sr and sw.
+[[gnu::always_inline]] inline void sum_down(int T, const double* __restrict ar, const double* __restrict aw,
+                                            double* __restrict sr, double* __restrict sw) {
+  for (int x = 0; x < T; ++x) sr[x] = 0.0, sw[x] = 0.0;
+  for (int i = 0; i <= 2 * kEvidence; ++i)
+    for (int x = 0; x < T; ++x) sr[x] += ar[i * T + x], sw[x] += aw[i * T + x];
+}
+
+}  // namespace
+
 // Every candidate over the tile and its margin: the bilinear blend of the fits of the
 // tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
 // pixel's own blend. Also each candidate's weighted squared residual and weight per
-// pixel, for the evidence.
+// pixel, for the evidence. (fold_tile_shares filled the rows and columns of tiles.)
 DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
   const int T = tile_, e = kEvidence, side = fs.side, s = radius_;
   const std::size_t area = static_cast<std::size_t>(side * side);
   const int r0 = ty * T - e, c0 = tx * T - e;
+  const int *row_tile = fs.row_tile, *col_tile = fs.col_tile;
+  const double *row_frac = fs.row_frac, *col_frac = fs.col_frac;
   // A pixel's four nearest fits are at tiles (iy + n / 2, ix + n % 2), iy and ix its
   // lower row and column of tile centres: over the tile and its margin, one of kSpan.
   constexpr int kSpan = 3;
-  int row_tile[kMaxSide], col_tile[kMaxSide];
-  double row_frac[kMaxSide], col_frac[kMaxSide];
-  for (int x = 0; x < side; ++x) {
-    const double fx = (c0 + x + 0.5) / T - 0.5;
-    col_tile[x] = static_cast<int>(std::floor(fx)), col_frac[x] = fx - col_tile[x];
-    const double fy = (r0 + x + 0.5) / T - 0.5;
-    row_tile[x] = static_cast<int>(std::floor(fy)), row_frac[x] = fy - row_tile[x];
-  }
   const int spans_y = row_tile[side - 1] - row_tile[0] + 1, spans_x = col_tile[side - 1] - col_tile[0] + 1;
   // Per pixel: the map's height and weight (0 off the map), the monomials 1, X, Y, X²,
   // XY, Y² of its position about the tile's centre.
@@ -276,6 +310,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
       const bool on_map = r >= 0 && c >= 0 && r < map_.rows && c < map_.cols;
       const std::size_t k = on_map ? static_cast<std::size_t>(r) * map_.cols + c : 0;
       const bool weighed = on_map && map_.weight[k] > 0.0f;
+      fs.weighed[p] = weighed;
       fs.w[p] = weighed ? map_.weight[k] : 0.0;
       fs.z[p] = weighed ? map_.w[k] : 0.0;
       const double X = weighed ? (map_.u[k] - uc) * local_scale_ : 0.0,
@@ -284,53 +319,50 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
       for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = mono[i];
     }
   if (spans_y > kSpan || spans_x > kSpan) return;
+  const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
   for (int d = 0; d < kOwn; ++d) {
     const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
-    // The four fits of each (iy, ix), re-expanded about the tile's centre, or none where
-    // one is missing: beyond the map, or a window beside the map's or the panel's edge,
+    // The fit (dx, dy) from each tile the pixels blend, re-expanded about the tile's
+    // centre, or none: beyond the map, or a window beside the map's or the panel's edge,
     // mostly empty, that fits its few pixels closely and extrapolates wildly.
-    double coef[kSpan][kSpan][4][6], mean_square[kSpan][kSpan][4];
-    bool ok[kSpan][kSpan] = {};
-    for (int gy = 0; gy < spans_y; ++gy)
-      for (int gx = 0; gx < spans_x; ++gx) {
-        ok[gy][gx] = true;
-        for (int n = 0; n < 4 && ok[gy][gx]; ++n) {
-          const int by = std::clamp(row_tile[0] + gy + n / 2, 0, tiles_y_ - 1),
-                    bx = std::clamp(col_tile[0] + gx + n % 2, 0, tiles_x_ - 1);
-          const int ny = by + dy, nx = bx + dx;
-          if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) {
-            ok[gy][gx] = false;
-            break;
-          }
-          const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
-          ok[gy][gx] =
-              q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight;
-          // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
-          const double a = (uc - q.cu) * local_scale_, b = (vc - q.cv) * local_scale_;
-          const auto& c = q.c;
-          const double about[6] = {c(0) + c(1) * a + c(2) * b + c(3) * a * a + c(4) * a * b + c(5) * b * b,
-                                   c(1) + 2.0 * c(3) * a + c(4) * b,
-                                   c(2) + c(4) * a + 2.0 * c(5) * b,
-                                   c(3),
-                                   c(4),
-                                   c(5)};
-          std::copy(about, about + 6, coef[gy][gx][n]);
-          mean_square[gy][gx][n] = q.mean_square;
-        }
+    double coef[kSpan + 1][kSpan + 1][6], mean_square[kSpan + 1][kSpan + 1];
+    bool valid[kSpan + 1][kSpan + 1] = {};
+    for (int gy = 0; gy <= spans_y; ++gy)
+      for (int gx = 0; gx <= spans_x; ++gx) {
+        const int by = std::clamp(row_tile[0] + gy, 0, tiles_y_ - 1),
+                  bx = std::clamp(col_tile[0] + gx, 0, tiles_x_ - 1);
+        const int ny = by + dy, nx = bx + dx;
+        if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) continue;
+        const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+        valid[gy][gx] =
+            q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight;
+        if (!valid[gy][gx]) continue;
+        // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
+        const double a = (uc - q.cu) * local_scale_, b = (vc - q.cv) * local_scale_;
+        const auto& c = q.c;
+        const double about[6] = {c(0) + c(1) * a + c(2) * b + c(3) * a * a + c(4) * a * b + c(5) * b * b,
+                                 c(1) + 2.0 * c(3) * a + c(4) * b,
+                                 c(2) + c(4) * a + 2.0 * c(5) * b,
+                                 c(3),
+                                 c(4),
+                                 c(5)};
+        std::copy(about, about + 6, coef[gy][gx]);
+        mean_square[gy][gx] = q.mean_square;
       }
     double* f = fs.f.data() + d * area;
     double* ms = fs.ms.data() + d * area;
     std::uint8_t* have = fs.have.data() + d * area;
-    const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
     for (int y = 0; y < side; ++y) {
       const int gy = row_tile[y] - row_tile[0];
       for (int x0 = 0, x1 = 0; x0 < side; x0 = x1) {
         const int gx = col_tile[x0] - col_tile[0];
         for (x1 = x0 + 1; x1 < side && col_tile[x1] == col_tile[x0];) ++x1;
-        if (!ok[gy][gx]) {
-          std::fill(have + y * side + x0, have + y * side + x1, 0);
+        const std::size_t p0 = static_cast<std::size_t>(y * side + x0);
+        if (!(valid[gy][gx] && valid[gy][gx + 1] && valid[gy + 1][gx] && valid[gy + 1][gx + 1])) {
+          std::fill(have + p0, have + p0 + (x1 - x0), 0);
           continue;
         }
+        std::copy(fs.weighed.data() + p0, fs.weighed.data() + p0 + (x1 - x0), have + p0);
         // Along the run only the column fraction ax changes: fit n weighs
         // (1 - ax or ax) * (1 - ay or ay) + 1e-9 = alpha + ax beta, and the blend is
         // (A + ax B) / (wa + ax wb), as in blend().
@@ -338,50 +370,53 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
         for (int n = 0; n < 4; ++n) {
           const double wy = n / 2 ? row_frac[y] : 1.0 - row_frac[y];
           const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
-          for (int i = 0; i < 6; ++i) A[i] += alpha * coef[gy][gx][n][i], B[i] += beta * coef[gy][gx][n][i];
-          mA += alpha * mean_square[gy][gx][n], mB += beta * mean_square[gy][gx][n];
+          const double* cn = coef[gy + n / 2][gx + n % 2];
+          for (int i = 0; i < 6; ++i) A[i] += alpha * cn[i], B[i] += beta * cn[i];
+          mA += alpha * mean_square[gy + n / 2][gx + n % 2], mB += beta * mean_square[gy + n / 2][gx + n % 2];
           wa += alpha, wb += beta;
         }
-        for (int x = x0; x < x1; ++x) {
-          const std::size_t p = static_cast<std::size_t>(y * side + x);
-          const double ax = col_frac[x];
-          have[p] = fs.w[p] > 0.0;
-          const double a = A[0] + A[1] * X[p] + A[2] * Y[p] + A[3] * XX[p] + A[4] * XY[p] + A[5] * YY[p];
-          const double b = B[0] + B[1] * X[p] + B[2] * Y[p] + B[3] * XX[p] + B[4] * XY[p] + B[5] * YY[p];
-          const double inv = 1.0 / (wa + ax * wb);
-          f[p] = (a + ax * b) * inv, ms[p] = (mA + ax * mB) * inv;
-        }
+        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, col_frac + x0, A, B, mA, mB, wa, wb,
+                  f + p0, ms + p0);
       }
     }
   }
-  // The pixel's own blend, as blend() made it (its windows' mean square: the tile's pixels').
+  // The pixel's own blend, as blend() made it, and its four fits' windows' mean square
+  // blended alike (the tile's pixels').
   double* f = fs.f.data() + kOwn * area;
+  double* own_ms = fs.ms.data() + kOwn * area;
   std::uint8_t* have = fs.have.data() + kOwn * area;
   for (int y = 0; y < side; ++y)
     for (int x = 0; x < side; ++x) {
       const std::size_t p = static_cast<std::size_t>(y * side + x);
       have[p] = 0;
-      if (!(fs.w[p] > 0.0)) continue;
+      if (!fs.weighed[p]) continue;
       const int r = r0 + y, c = c0 + x;
       f[p] = ref_[static_cast<std::size_t>(r) * map_.cols + c];
       have[p] = std::isfinite(f[p]);
-      if (have[p] && y >= e && y < e + T && x >= e && x < e + T)
-        have[p] = blended_mean_square(r, c, fs.ms[kOwn * area + p]);
+      if (!have[p] || y < e || y >= e + T || x < e || x >= e + T) continue;
+      const int iy = row_tile[y], ix = col_tile[x];
+      const double ay = row_frac[y], ax = col_frac[x];
+      double sum = 0.0, ws = 0.0;
+      for (int n = 0; n < 4 && have[p]; ++n) {
+        const Quadratic& q =
+            fits_[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
+                  std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
+        have[p] = q.ok;
+        const double wn = (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) + 1e-9;
+        sum += wn * q.mean_square, ws += wn;
+      }
+      if (have[p]) own_ms[p] = sum / ws;
     }
-  // What the evidence sums: weighted squared residuals and weights (0 without a candidate).
+  // What the evidence sums.
   for (int d = 0; d < kCandidates; ++d)
-    for (std::size_t p = 0; p < area; ++p) {
-      const std::size_t j = d * area + p;
-      const double dz = fs.z[p] - fs.f[j];
-      fs.resid[j] = fs.have[j] ? fs.w[p] * dz * dz : 0.0;
-      fs.weight[j] = fs.have[j] ? fs.w[p] : 0.0;
-    }
+    evidence_terms(area, fs.z.data(), fs.w.data(), fs.f.data() + d * area, fs.have.data() + d * area,
+                   fs.resid.data() + d * area, fs.weight.data() + d * area);
 }
 
 // Per pixel of the tile with a share: its clean candidates, weighted by how well they
 // follow the (2 kEvidence + 1)² pixels around it.
-DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs,
-                                                       std::vector<FoldPixel>& out) const {
+DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, FoldPixel* out) const {
+  int count = 0;
   const int T = tile_, e = kEvidence, side = fs.side;
   const std::size_t square = static_cast<std::size_t>(T * T);
   // Each candidate's weighted squared residuals and weights summed over the square
@@ -402,12 +437,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScrat
     double* sum_resid = fs.sums.data() + 2 * d * square;
     double* sum_weight = sum_resid + square;
     for (int y = 0; y < T; ++y)
-      for (int x = 0; x < T; ++x) {
-        double sr = 0.0, sw = 0.0;
-        for (int i = 0; i <= 2 * e; ++i)
-          sr += across_resid[(y + i) * T + x], sw += across_weight[(y + i) * T + x];
-        sum_resid[y * T + x] = sr, sum_weight[y * T + x] = sw;
-      }
+      sum_down(T, across_resid + y * T, across_weight + y * T, sum_resid + y * T, sum_weight + y * T);
   }
   for (int y = 0; y < T; ++y)
     for (int x = 0; x < T; ++x) {
@@ -458,8 +488,9 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_evidence(int tx, int ty, FoldScrat
       bool clean[kCandidates];
       for (int d = 0; d < kCandidates; ++d) clean[d] = std::isfinite(px.height[d]);
       px.crossing = crosses_fold(fs, at, clean);
-      out.push_back(px);
+      out[count++] = px;
     }
+  return count;
 }
 
 // Whether the fold's line passes between the pixel at 'at' (in the scratch) and the next

@@ -96,7 +96,8 @@ class ReferenceSurface {
   struct FoldScratch;
   bool fold_tile_shares(int tx, int ty, const std::vector<float>& share, FoldScratch& fs) const;
   void fold_candidates(int tx, int ty, FoldScratch& fs) const;
-  void fold_evidence(int tx, int ty, FoldScratch& fs, std::vector<FoldPixel>& out) const;
+  // Writes the tile's pixels with a share to out (room for tile²); returns their count.
+  int fold_evidence(int tx, int ty, FoldScratch& fs, FoldPixel* out) const;
   bool crosses_fold(const FoldScratch& fs, std::size_t at, const bool* clean) const;
   // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
   std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
@@ -104,9 +105,6 @@ class ReferenceSurface {
   void mark_fold_lines(const std::vector<FoldPixel*>& pixels);
   // How far the fold pass takes each tile from its own fit (0: not at all).
   std::vector<float> fold_shares() const;
-  // The blend, at pixel (r, c), of its four nearest tile fits' windows' mean squares;
-  // false where one of them failed.
-  bool blended_mean_square(int r, int c, double& mean_square) const;
 
   const HeightMap& map_;
   int tile_ = 4, radius_ = 1;  // tile side (pixels); window half-side (tiles)
