@@ -17,6 +17,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #include "dentmark/host/detect/reference_surface.h"
@@ -252,14 +253,27 @@ namespace {
 [[gnu::always_inline]] inline void blend_run(int n, const double* __restrict X, const double* __restrict Y,
                                              const double* __restrict XX, const double* __restrict XY,
                                              const double* __restrict YY, const double* __restrict ax,
-                                             const double (&A)[6], const double (&B)[6], double mA, double mB,
-                                             double wa, double wb, double* __restrict f,
+                                             const double* __restrict A, const double* __restrict B,
+                                             double mA, double mB, double wa, double wb, double* __restrict f,
                                              double* __restrict ms) {
   for (int x = 0; x < n; ++x) {
     const double a = A[0] + A[1] * X[x] + A[2] * Y[x] + A[3] * XX[x] + A[4] * XY[x] + A[5] * YY[x];
     const double b = B[0] + B[1] * X[x] + B[2] * Y[x] + B[3] * XX[x] + B[4] * XY[x] + B[5] * YY[x];
     const double inv = 1.0 / (wa + ax[x] * wb);
     f[x] = (a + ax[x] * b) * inv, ms[x] = (mA + ax[x] * mB) * inv;
+  }
+}
+
+// A += alpha c, B += beta c, over eight, four at a time (GCC left the loop scalar).
+[[gnu::always_inline]] inline void add_scaled(double* __restrict A, double* __restrict B,
+                                              const double* __restrict c, double alpha, double beta) {
+  using Four = double __attribute__((vector_size(32)));
+  for (int h = 0; h < 8; h += 4) {
+    Four a, b, of_c;
+    std::memcpy(&a, A + h, sizeof a), std::memcpy(&b, B + h, sizeof b),
+        std::memcpy(&of_c, c + h, sizeof of_c);
+    a += alpha * of_c, b += beta * of_c;
+    std::memcpy(A + h, &a, sizeof a), std::memcpy(B + h, &b, sizeof b);
   }
 }
 
@@ -319,13 +333,21 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
       for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = mono[i];
     }
   if (spans_y > kSpan || spans_x > kSpan) return;
+  // The runs of columns that share their four nearest tiles: [run_start[g], run_start[g + 1]).
+  int run_start[kSpan + 1];
+  for (int g = 0, x = 0; g <= spans_x; ++g) {
+    while (x < side && col_tile[x] - col_tile[0] < g) ++x;
+    run_start[g] = x;
+  }
   const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
   for (int d = 0; d < kOwn; ++d) {
     const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
     // The fit (dx, dy) from each tile the pixels blend, re-expanded about the tile's
     // centre, or none: beyond the map, or a window beside the map's or the panel's edge,
     // mostly empty, that fits its few pixels closely and extrapolates wildly.
-    double coef[kSpan + 1][kSpan + 1][6], mean_square[kSpan + 1][kSpan + 1];
+    // Per tile: the six coefficients, the window's mean square and 1 (for the blend's
+    // weights), eight so that the blend below vectorises.
+    alignas(32) double coef[kSpan + 1][kSpan + 1][8];
     bool valid[kSpan + 1][kSpan + 1] = {};
     for (int gy = 0; gy <= spans_y; ++gy)
       for (int gx = 0; gx <= spans_x; ++gx) {
@@ -347,18 +369,21 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
                                  c(4),
                                  c(5)};
         std::copy(about, about + 6, coef[gy][gx]);
-        mean_square[gy][gx] = q.mean_square;
+        coef[gy][gx][6] = q.mean_square, coef[gy][gx][7] = 1.0;
       }
+    bool cell_ok[kSpan][kSpan];
+    for (int gy = 0; gy < spans_y; ++gy)
+      for (int gx = 0; gx < spans_x; ++gx)
+        cell_ok[gy][gx] = valid[gy][gx] && valid[gy][gx + 1] && valid[gy + 1][gx] && valid[gy + 1][gx + 1];
     double* f = fs.f.data() + d * area;
     double* ms = fs.ms.data() + d * area;
     std::uint8_t* have = fs.have.data() + d * area;
     for (int y = 0; y < side; ++y) {
       const int gy = row_tile[y] - row_tile[0];
-      for (int x0 = 0, x1 = 0; x0 < side; x0 = x1) {
-        const int gx = col_tile[x0] - col_tile[0];
-        for (x1 = x0 + 1; x1 < side && col_tile[x1] == col_tile[x0];) ++x1;
+      for (int g = 0; g < spans_x; ++g) {
+        const int gx = g, x0 = run_start[g], x1 = run_start[g + 1];
         const std::size_t p0 = static_cast<std::size_t>(y * side + x0);
-        if (!(valid[gy][gx] && valid[gy][gx + 1] && valid[gy + 1][gx] && valid[gy + 1][gx + 1])) {
+        if (!cell_ok[gy][gx]) {
           std::fill(have + p0, have + p0 + (x1 - x0), 0);
           continue;
         }
@@ -366,17 +391,15 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
         // Along the run only the column fraction ax changes: fit n weighs
         // (1 - ax or ax) * (1 - ay or ay) + 1e-9 = alpha + ax beta, and the blend is
         // (A + ax B) / (wa + ax wb), as in blend().
-        double A[6] = {}, B[6] = {}, mA = 0.0, mB = 0.0, wa = 0.0, wb = 0.0;
+        // (A[6], B[6]: the same of the mean squares; A[7], B[7]: wa, wb.)
+        alignas(32) double A[8] = {}, B[8] = {};
         for (int n = 0; n < 4; ++n) {
           const double wy = n / 2 ? row_frac[y] : 1.0 - row_frac[y];
           const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
-          const double* cn = coef[gy + n / 2][gx + n % 2];
-          for (int i = 0; i < 6; ++i) A[i] += alpha * cn[i], B[i] += beta * cn[i];
-          mA += alpha * mean_square[gy + n / 2][gx + n % 2], mB += beta * mean_square[gy + n / 2][gx + n % 2];
-          wa += alpha, wb += beta;
+          add_scaled(A, B, coef[gy + n / 2][gx + n % 2], alpha, beta);
         }
-        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, col_frac + x0, A, B, mA, mB, wa, wb,
-                  f + p0, ms + p0);
+        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, col_frac + x0, A, B, A[6], B[6], A[7],
+                  B[7], f + p0, ms + p0);
       }
     }
   }
@@ -419,6 +442,7 @@ DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int tx, int ty, FoldScratc
   int count = 0;
   const int T = tile_, e = kEvidence, side = fs.side;
   const std::size_t square = static_cast<std::size_t>(T * T);
+
   // Each candidate's weighted squared residuals and weights summed over the square
   // around each pixel: along rows, then down columns.
   for (int d = 0; d < kCandidates; ++d) {
