@@ -380,6 +380,22 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const auto touches_spike = [&](const std::vector<std::int32_t>& pixels) {
     return std::any_of(pixels.begin(), pixels.end(), [&](std::int32_t k) { return spike.data[k] != 0; });
   };
+  // Each candidate measured against a local reference fitted around it, and its normal
+  // from a least-squares plane over a normal_patch square around it, leaving out the
+  // candidate itself; side by side (they only read the scene).
+  std::vector<Measurement> measured(comps.size());
+  std::vector<Eigen::Vector3d> normals(comps.size());
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int ci = 1; ci < ncomp; ++ci) {
+    const Candidate& comp = comps[static_cast<std::size_t>(ci)];
+    if (comp.pixels.empty() || reason_for_design(comp)) continue;
+    const Measurement& m = measured[static_cast<std::size_t>(ci)] =
+        measure_candidate(scene, comp.pixels, ci, comp.shape.length, comp.shape.mean);
+    const long pk = map.pixel_of(m.position.x(), m.position.y());
+    normals[static_cast<std::size_t>(ci)] =
+        patch_normal(map, cfg.normal_patch, pk >= 0 ? static_cast<int>(pk / cols) : m.peak / cols,
+                     pk >= 0 ? static_cast<int>(pk % cols) : m.peak % cols, not_surface);
+  }
   for (int ci = 1; ci < ncomp; ++ci) {
     const Candidate& comp = comps[static_cast<std::size_t>(ci)];
     if (comp.pixels.empty()) continue;
@@ -394,16 +410,9 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
     f.pixels = static_cast<int>(comp.pixels.size());
     protocol::Defect& d = f.defect;
 
-    // --- Measure against a local reference fitted around the candidate ---
-    const Measurement m = measure_candidate(scene, comp.pixels, ci, shape.length, shape.mean);
+    const Measurement& m = measured[static_cast<std::size_t>(ci)];
     d.position = map.to_scan(m.position.x(), m.position.y(), m.position.z());
-    // Normal: least-squares plane over a normal_patch square around the defect,
-    // leaving out the candidate itself.
-    {
-      const long pk = map.pixel_of(m.position.x(), m.position.y());
-      d.normal = patch_normal(map, cfg.normal_patch, pk >= 0 ? static_cast<int>(pk / cols) : m.peak / cols,
-                              pk >= 0 ? static_cast<int>(pk % cols) : m.peak % cols, not_surface);
-    }
+    d.normal = normals[static_cast<std::size_t>(ci)];
     d.height = m.height;
     d.diameter = std::max(h, 4.0 * m.half_radius);
     d.area = std::numbers::pi * 0.25 * d.diameter * d.diameter;

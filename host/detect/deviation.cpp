@@ -85,7 +85,8 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
   dev.create(rows, cols, CV_32F);
   cv::Mat& cand = out.candidates;
   // Working images, reused by every iteration.
-  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, num, valid(rows, cols, CV_8U);
+  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, valid(rows, cols, CV_8U);
+  std::vector<cv::Mat> num(scales.size());
   // Pixels far from their 3 x 3 median: outlier spikes.
   cv::Mat& spike = out.spikes;
   spike.create(rows, cols, CV_8U);
@@ -113,12 +114,20 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
       wvp[k] = ok ? map.weight[k] : 0.0f;
       vp[k] = ok ? 255 : 0;
     }
-    out.noise = robust_sigma(dev, interior);
     // Median first: a lone outlier spike cannot survive it; a defect of a few pixels can.
-    if (scales.front() >= 3)
-      cv::medianBlur(dz, dm, 3);
-    else
-      dz.copyTo(dm);
+    // (The noise's σ meanwhile: both are serial.)
+#pragma omp parallel sections num_threads(std::min(2, detail::thread_count()))
+    {
+#pragma omp section
+      out.noise = robust_sigma(dev, interior);
+#pragma omp section
+      {
+        if (scales.front() >= 3)
+          cv::medianBlur(dz, dm, 3);
+        else
+          dz.copyTo(dm);
+      }
+    }
     float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
     const float* dmp = dm.ptr<float>();
     std::uint8_t *sp = spike.ptr<std::uint8_t>(), *osk = off_skin.ptr<std::uint8_t>();
@@ -137,12 +146,15 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
     cand.create(rows, cols, CV_8U);
     cand.setTo(0);
     std::uint8_t* cp = cand.ptr<std::uint8_t>();
+    // The windowed means where the window is at least 30 % full, NaN elsewhere; then their
+    // σ, side by side (each is serial).
+    for (std::size_t s = 0; s < scales.size(); ++s)
+      box_mean(dz, wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), num[s]);
+#pragma omp parallel for schedule(dynamic, 1) \
+    num_threads(std::min <int>(static_cast <int>(scales.size()), detail::thread_count()))
+    for (std::size_t s = 0; s < scales.size(); ++s) scale_sigma[s] = robust_sigma(num[s], interior);
     for (std::size_t s = 0; s < scales.size(); ++s) {
-      const int k = scales[s];
-      // The windowed mean where the window is at least 30 % full, NaN elsewhere.
-      box_mean(dz, wv, k, 0.3f * static_cast<float>(k * k), num);
-      const float* rs = num.ptr<float>();
-      scale_sigma[s] = robust_sigma(num, interior);
+      const float* rs = num[s].ptr<float>();
       const float thr =
           static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));
 #pragma omp parallel for schedule(static)

@@ -202,15 +202,17 @@ void ReferenceSurface::fold_pass() {
       pixels.push_back(&found[i * per_tile + static_cast<std::size_t>(j)]);
   mark_fold_lines(pixels);
   fill_fold_weights(pixels);
-  for (const FoldPixel* p : pixels) {
-    const FoldPixel& px = *p;
+  // (Every pixel's blend is kept to restore, changed or not: each is a pixel of its own.)
+  unfolded_.resize(pixels.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const FoldPixel& px = *pixels[i];
+    unfolded_[i] = {px.k, ref_[px.k]};
     double h = 0.0, ws = 0.0;
     for (int d = 0; d < kCandidates; ++d)
       if (px.weight[d] > 0.0f && std::isfinite(px.height[d]))
         h += px.weight[d] * px.height[d], ws += px.weight[d];
-    if (!(ws > 0.0)) continue;
-    unfolded_.emplace_back(px.k, ref_[px.k]);
-    ref_[px.k] = static_cast<float>((1.0 - px.share) * ref_[px.k] + px.share * h / ws);
+    if (ws > 0.0) ref_[px.k] = static_cast<float>((1.0 - px.share) * ref_[px.k] + px.share * h / ws);
   }
 }
 
@@ -557,12 +559,13 @@ void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel*>& pixels) {
   std::nth_element(errors.begin(), middle, errors.end());
   const double typical = *middle;
   fold_lines_.assign(map_.size(), 0);
-  for (const FoldPixel* px : pixels)
-    if (px->evidence && px->fit_error > kLineError * typical + kFloor &&
-        px->spread > kLineSpread * std::sqrt(typical + kFloor))
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const FoldPixel* px = pixels[i];
+    if (px->crossing || (px->evidence && px->fit_error > kLineError * typical + kFloor &&
+                         px->spread > kLineSpread * std::sqrt(typical + kFloor)))
       fold_lines_[px->k] = 255;
-  for (const FoldPixel* px : pixels)
-    if (px->crossing) fold_lines_[px->k] = 255;
+  }
 }
 
 // Pixels without evidence (a defect and the margin around it, left out of the fit; the

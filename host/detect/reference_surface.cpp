@@ -59,11 +59,14 @@ ReferenceSurface::ReferenceSurface(const HeightMap& map, double window) : map_(m
   // The map's own weight per tile, summed as an integral image.
   const int ic = tiles_x_ + 1;
   capacity_.assign(static_cast<std::size_t>(ic) * (tiles_y_ + 1), 0.0);
-  for (int r = 0; r < map.rows; ++r)
-    for (int c = 0; c < map.cols; ++c) {
-      const float w = map.weight[static_cast<std::size_t>(r) * map.cols + c];
-      if (w > 0.0f) capacity_[static_cast<std::size_t>(r / tile_ + 1) * ic + c / tile_ + 1] += w;
-    }
+  // (A tile row per thread: each tile's weights are summed in the same order as by one.)
+#pragma omp parallel for schedule(static)
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int r = ty * tile_; r < std::min(map.rows, (ty + 1) * tile_); ++r)
+      for (int c = 0; c < map.cols; ++c) {
+        const float w = map.weight[static_cast<std::size_t>(r) * map.cols + c];
+        if (w > 0.0f) capacity_[static_cast<std::size_t>(ty + 1) * ic + c / tile_ + 1] += w;
+      }
   for (int ty = 1; ty <= tiles_y_; ++ty)
     for (int tx = 1; tx <= tiles_x_; ++tx)
       capacity_[static_cast<std::size_t>(ty) * ic + tx] +=

@@ -116,7 +116,7 @@ class ReferenceSurface {
   std::vector<Quadratic> fits_;
   std::vector<float> weights_;  // of the last fit
   std::vector<float> ref_;
-  // The blended heights of the pixels the last fold pass changed, to restore first.
+  // The blended heights of the pixels the last fold pass took, to restore first.
   std::vector<std::pair<std::size_t, float>> unfolded_;
   std::vector<std::uint8_t> fold_lines_;
   bool look_for_folds_ = true;
