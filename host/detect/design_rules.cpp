@@ -7,6 +7,15 @@
 #include <opencv2/imgproc.hpp>
 
 namespace dentmark::detect {
+namespace {
+
+// A border's band: its design candidates' pixels within this distance of the border zone
+// (m; a rolled edge's roll-off spread by the widest box mean reaches ~16 mm) ...
+constexpr double kBorderBand = 0.025;
+// ... and how far beyond it a candidate is next to it (m).
+constexpr double kBesideBorder = 0.002;
+
+}  // namespace
 
 CandidateShape shape_of(const std::vector<std::int32_t>& pixels, const HeightMap& map,
                         const cv::Mat& border_zone) {
@@ -42,6 +51,17 @@ cv::Mat design_surroundings(const cv::Mat& design, double pixel) {
   cv::Mat out;
   cv::dilate(design, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   return out;
+}
+
+cv::Mat design_surroundings(const cv::Mat& design, const cv::Mat& border_design, const cv::Mat& edge_zone,
+                            double pixel) {
+  const int band = static_cast<int>(std::lround(kBorderBand / pixel));
+  cv::Mat near_edge, near_band;
+  cv::dilate(edge_zone, near_edge, cv::getStructuringElement(cv::MORPH_RECT, {2 * band + 1, 2 * band + 1}));
+  const int rad = std::max(1, static_cast<int>(std::lround(kBesideBorder / pixel)));
+  cv::dilate(border_design & near_edge, near_band,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  return design_surroundings(design | (border_design & ~near_edge), pixel) | near_band;
 }
 
 bool next_to_design(const std::vector<std::int32_t>& pixels, const cv::Mat& surroundings,

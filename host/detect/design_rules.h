@@ -30,6 +30,15 @@ const char* design_reason(const CandidateShape& shape, const DetectConfig& cfg);
 // the map's pixel size (m). Returns 255 on the pixels within 8 mm of them (CV_8U).
 cv::Mat design_surroundings(const cv::Mat& design, double pixel);
 
+// The same, with the design candidates that touch a border (border_design, CV_8U) apart:
+// their band, the pixels within 25 mm of the border zone (edge_zone, CV_8U), is the
+// roll-off of a rolled edge that the reference cannot follow, not a feature with
+// shoulders, and only 2 mm around it belong to it (of dents and bumps 16-18 mm from such
+// an edge, 0 in 20 were found, all "next to" it; with 2 mm, 12 in 20). The rest of them
+// (a crease or a handle that runs into the border's candidate) keeps its 8 mm.
+cv::Mat design_surroundings(const cv::Mat& design, const cv::Mat& border_design, const cv::Mat& edge_zone,
+                            double pixel);
+
 // Pieces next to a design feature (the rim around a handle, the shoulders of a crease)
 // belong to it: a reference surface cannot follow them there. A piece of one lies mostly
 // within 8 mm of it or peaks there (a handle's rim is strongest at the handle); a defect

@@ -46,12 +46,6 @@ constexpr double kOpposedLeafShare = 1e-4;
 // ... and parts of at least this many triangles (or 1 % of them) may be views merged
 // without sharing an edge, each wound its own way.
 constexpr std::size_t kLargePart = 1000;
-// How far beyond a border's candidate (the band a rolled edge leaves) a candidate is next
-// to it (m); other design features reach 8 mm (design_rules.h).
-constexpr double kBesideBorder = 0.002;
-// ... the band being its pixels within this distance of the border zone (m; the roll-off
-// spread by the widest box mean reaches ~16 mm).
-constexpr double kBorderBand = 0.025;
 
 // A candidate: connected pixels over the deviation test or in an eq. (3)-(4) group.
 struct Candidate {
@@ -345,28 +339,14 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size());
   const double sigma3 = std::max(deviation.scale_sigma.front(), 1e-9);
 
-  // Design features by shape, and the pieces next to them.
-  // A border's candidate is the roll-off the reference cannot follow, not a feature with
-  // shoulders: what lies 2 mm beyond it is the panel's own (of dents and bumps 16-18 mm
-  // from a rolled edge, 0 in 20 were found, all "next to" it; now 12 in 20).
+  // Design features by shape, and the pieces next to them; those that touch a border
+  // apart (design_rules.h: a rolled edge's band has no shoulders).
   cv::Mat design(rows, cols, CV_8U, cv::Scalar(0)), border_design(rows, cols, CV_8U, cv::Scalar(0));
   for (const Candidate& comp : comps)
     if (!comp.pixels.empty() && design_reason(comp.shape, cfg))
       for (auto k : comp.pixels) (comp.shape.touches_edge ? border_design : design).data[k] = 255;
   design |= fold_px;  // a fold line is a design feature wherever it shows, even in pieces
-  cv::Mat near_border;
-  {
-    // (Only its band's: a crease or a handle that runs into it keeps its 8 mm.)
-    const int band = static_cast<int>(std::lround(kBorderBand / h));
-    cv::Mat near_edge;
-    cv::dilate(edge_zone, near_edge, cv::getStructuringElement(cv::MORPH_RECT, {2 * band + 1, 2 * band + 1}));
-    design |= border_design & ~near_edge;
-    border_design &= near_edge;
-    const int rad = std::max(1, static_cast<int>(std::lround(kBesideBorder / h)));
-    cv::dilate(border_design, near_border,
-               cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
-  }
-  const cv::Mat near_design = design_surroundings(design, h) | near_border;
+  const cv::Mat near_design = design_surroundings(design, border_design, edge_zone, h);
   const auto reason_for_design = [&](const Candidate& comp) -> const char* {
     if (const char* why = design_reason(comp.shape, cfg)) return why;
     return next_to_design(comp.pixels, near_design, dev) ? "next to a design feature" : nullptr;

@@ -210,6 +210,31 @@ TEST(DesignSurroundings, EightMillimetresAroundTheDesign) {
   EXPECT_EQ(coarse.at<std::uint8_t>(30, 33), 0);
 }
 
+TEST(DesignSurroundings, ABordersBandTwoMillimetresTheRestEight) {
+  // 1 mm pixels; the border zone is the left 3 columns; a border's candidate runs along
+  // it (columns 3-8) and, as a crease would, out along row 50 to column 110.
+  const double h = 0.001;
+  cv::Mat design(100, 120, CV_8U, cv::Scalar(0)), border(100, 120, CV_8U, cv::Scalar(0)),
+      zone(100, 120, CV_8U, cv::Scalar(0));
+  zone.colRange(0, 3).setTo(255);
+  border.colRange(3, 9).setTo(255);
+  border.row(50).colRange(3, 111).setTo(255);
+  const cv::Mat s = design_surroundings(design, border, zone, h);
+  // Beside the band: 2 mm (columns 9, 10), not 3.
+  EXPECT_EQ(s.at<std::uint8_t>(20, 10), 255);
+  EXPECT_EQ(s.at<std::uint8_t>(20, 11), 0);
+  EXPECT_EQ(s.at<std::uint8_t>(20, 16), 0);
+  // The crease within 25 mm of the zone is the band's too (2 mm); beyond, its own 8 mm.
+  EXPECT_EQ(s.at<std::uint8_t>(53, 20), 0);
+  EXPECT_EQ(s.at<std::uint8_t>(58, 60), 255);
+  EXPECT_EQ(s.at<std::uint8_t>(59, 60), 0);
+  // Other design features: 8 mm as before.
+  design.at<std::uint8_t>(20, 80) = 255;
+  const cv::Mat t = design_surroundings(design, border, zone, h);
+  EXPECT_EQ(t.at<std::uint8_t>(20, 88), 255);
+  EXPECT_EQ(t.at<std::uint8_t>(20, 89), 0);
+}
+
 struct NextToDesign : ::testing::Test {
   static constexpr int kCols = 30, kRows = 20;
   cv::Mat surroundings{kRows, kCols, CV_8U, cv::Scalar(0)};
