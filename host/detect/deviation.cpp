@@ -150,8 +150,8 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
     // σ, side by side (each is serial).
     for (std::size_t s = 0; s < scales.size(); ++s)
       box_mean(dz, wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), num[s]);
-#pragma omp parallel for schedule(dynamic, 1) \
-    num_threads(std::min <int>(static_cast <int>(scales.size()), detail::thread_count()))
+    const int sigma_threads = std::min(static_cast<int>(scales.size()), detail::thread_count());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(sigma_threads)
     for (std::size_t s = 0; s < scales.size(); ++s) scale_sigma[s] = robust_sigma(num[s], interior);
     for (std::size_t s = 0; s < scales.size(); ++s) {
       const float* rs = num[s].ptr<float>();

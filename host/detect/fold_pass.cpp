@@ -191,6 +191,7 @@ void ReferenceSurface::fold_pass() {
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < tiles.size(); ++i) {
       const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
+      fold_tile_grid(tx, ty, scratch);
       if (!fold_tile_shares(tx, ty, share, scratch)) continue;
       fold_candidates(tx, ty, scratch);
       found_count[i] = fold_evidence(tx, ty, scratch, found.data() + i * per_tile);
@@ -216,18 +217,24 @@ void ReferenceSurface::fold_pass() {
   }
 }
 
-// The tile's pixels' shares: the bilinear blend of their four nearest tiles'. False if
-// none has a share. Also fills the scratch's rows and columns of tile centres.
-bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>& share,
-                                        FoldScratch& fs) const {
-  const int T = tile_, e = kEvidence, side = fs.side;
+// The scratch's rows and columns of tile centres for the tile and its margin, as blend()
+// finds a pixel's four nearest fits.
+void ReferenceSurface::fold_tile_grid(int tx, int ty, FoldScratch& fs) const {
+  const int T = tile_, e = kEvidence;
   const int r0 = ty * T - e, c0 = tx * T - e;
-  for (int x = 0; x < side; ++x) {
+  for (int x = 0; x < fs.side; ++x) {
     const double fx = (c0 + x + 0.5) / T - 0.5;
     fs.col_tile[x] = static_cast<int>(std::floor(fx)), fs.col_frac[x] = fx - fs.col_tile[x];
     const double fy = (r0 + x + 0.5) / T - 0.5;
     fs.row_tile[x] = static_cast<int>(std::floor(fy)), fs.row_frac[x] = fy - fs.row_tile[x];
   }
+}
+
+// The tile's pixels' shares: the bilinear blend of their four nearest tiles'. False if
+// none has a share.
+bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>& share,
+                                        FoldScratch& fs) const {
+  const int T = tile_, e = kEvidence;
   bool any = false;
   for (int y = 0; y < T; ++y)
     for (int x = 0; x < T; ++x) {
@@ -305,7 +312,7 @@ namespace {
 // Every candidate over the tile and its margin: the bilinear blend of the fits of the
 // tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
 // pixel's own blend. Also each candidate's weighted squared residual and weight per
-// pixel, for the evidence. (fold_tile_shares filled the rows and columns of tiles.)
+// pixel, for the evidence. (After fold_tile_grid.)
 DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
   const int T = tile_, e = kEvidence, side = fs.side, s = radius_;
   const std::size_t area = static_cast<std::size_t>(side * side);

@@ -94,6 +94,7 @@ class ReferenceSurface {
   };
   void fold_pass();
   struct FoldScratch;
+  void fold_tile_grid(int tx, int ty, FoldScratch& fs) const;
   bool fold_tile_shares(int tx, int ty, const std::vector<float>& share, FoldScratch& fs) const;
   void fold_candidates(int tx, int ty, FoldScratch& fs) const;
   // Writes the tile's pixels with a share to out (room for tile²); returns their count.
