@@ -36,20 +36,30 @@ DENTMARK_HOT_LOOP void box_mean(const cv::Mat& values, const cv::Mat& weights, i
     const std::size_t stride = static_cast<std::size_t>(cols) + k;
     double* sv[2] = {buf.data() + h, buf.data() + stride + h};
     double* sw[2] = {buf.data() + 2 * stride + h, buf.data() + 3 * stride + h};
-    const auto add_row = [&](double* cv_, double* cw, int r, double sign) {
-      if (r < 0 || r >= rows) return;
+    const auto add_row = [&](double* cv_, double* cw, int r) {
       const float* v = val + static_cast<std::ptrdiff_t>(r) * cols;
       const float* w = wgt + static_cast<std::ptrdiff_t>(r) * cols;
-      for (int c = 0; c < cols; ++c) cv_[c] += sign * v[c], cw[c] += sign * w[c];
+      for (int c = 0; c < cols; ++c) cv_[c] += v[c], cw[c] += w[c];
     };
-    // The next row's column sums from this row's: the same additions, in the same
-    // order, as moving one set down a row.
+    // The next row's column sums from this row's, in one pass: row r + h in, row
+    // r - h - 1 out (the same additions, in the same order, as moving one set down a
+    // row). The overhangs stay zero.
     const auto next_row = [&](int from, int r) {
       const int to = 1 - from;
-      std::copy(sv[from] - h, sv[from] - h + stride, sv[to] - h);
-      std::copy(sw[from] - h, sw[from] - h + stride, sw[to] - h);
-      add_row(sv[to], sw[to], r + h, 1.0);
-      add_row(sv[to], sw[to], r - h - 1, -1.0);
+      const double *fv = sv[from], *fw = sw[from];
+      double *tv = sv[to], *tw = sw[to];
+      const bool enters = r + h < rows, leaves = r - h - 1 >= 0;
+      const std::ptrdiff_t ri = static_cast<std::ptrdiff_t>(enters ? r + h : 0) * cols,
+                           ro = static_cast<std::ptrdiff_t>(leaves ? r - h - 1 : 0) * cols;
+      const float *vi = val + ri, *wi = wgt + ri, *vo = val + ro, *wo = wgt + ro;
+      if (enters && leaves)
+        for (int c = 0; c < cols; ++c) tv[c] = (fv[c] + vi[c]) - vo[c], tw[c] = (fw[c] + wi[c]) - wo[c];
+      else if (enters)
+        for (int c = 0; c < cols; ++c) tv[c] = fv[c] + vi[c], tw[c] = fw[c] + wi[c];
+      else if (leaves)
+        for (int c = 0; c < cols; ++c) tv[c] = fv[c] - vo[c], tw[c] = fw[c] - wo[c];
+      else
+        std::copy(fv, fv + cols, tv), std::copy(fw, fw + cols, tw);
     };
     const auto emit = [&](int n, int first, int r) {  // rows r .. r + n - 1 from sets first, 1 - first
       double a[2] = {0.0, 0.0}, b[2] = {0.0, 0.0};
@@ -84,7 +94,7 @@ DENTMARK_HOT_LOOP void box_mean(const cv::Mat& values, const cv::Mat& weights, i
     const int q = rows / threads, extra = rows % threads;
     const int r0 = t * q + std::min(t, extra), r1 = r0 + q + (t < extra ? 1 : 0);
     if (r0 < r1) {
-      for (int rr = r0 - h; rr <= r0 + h; ++rr) add_row(sv[0], sw[0], rr, 1.0);
+      for (int rr = std::max(r0 - h, 0); rr <= std::min(r0 + h, rows - 1); ++rr) add_row(sv[0], sw[0], rr);
       int cur = 0;
       for (int r = r0; r < r1; r += 2) {
         if (r + 1 < r1) {
