@@ -64,8 +64,14 @@ constexpr float kLineWeight = 0.1f;
 constexpr double kLineJump = 0.5 * kMinJump;
 // The pixel's own blend, a candidate besides the eight side windows' fits.
 constexpr int kOwn = 8;
-// The largest tile (pixels) plus its evidence margins the pass handles.
+// The pass works on blocks of whole tiles about this many pixels a side: each block's
+// candidates are computed over it and a kEvidence margin, 1.27 times its pixels at 32
+// (one 8-pixel tile a block: 2.25 times).
+constexpr int kBlockPixels = 32;
+// The largest block (pixels) plus its evidence margins the pass handles.
 constexpr int kMaxSide = 64;
+// The most rows (columns) of tile centres a block and its margins span.
+constexpr int kMaxSpan = kBlockPixels / 4 + 2;
 // Pixels without evidence take it from pixels at most this many rings away.
 constexpr int kFillRings = 24;
 
@@ -137,8 +143,9 @@ std::vector<float> ReferenceSurface::fold_shares() const {
 // One thread's working arrays for a tile and the kEvidence pixels around it (side x side),
 // candidate d's at [d][y][x].
 struct ReferenceSurface::FoldScratch {
-  explicit FoldScratch(int tile)
-      : side(tile + 2 * kEvidence),
+  explicit FoldScratch(int block_side)
+      : block(block_side),
+        side(block + 2 * kEvidence),
         f(static_cast<std::size_t>(kCandidates * side * side)),
         ms(f.size()),
         have(f.size()),
@@ -148,10 +155,11 @@ struct ReferenceSurface::FoldScratch {
         w(z.size()),
         weighed(z.size()),
         mono(6 * z.size()),
-        shares(static_cast<std::size_t>(tile * tile)),
-        across(static_cast<std::size_t>(2 * side * tile)),
-        sums(static_cast<std::size_t>(2 * kCandidates * tile * tile)) {}
-  int side;
+        shares(static_cast<std::size_t>(block * block)),
+        across(static_cast<std::size_t>(2 * side * block)),
+        sums(static_cast<std::size_t>(2 * kCandidates * block * block)) {}
+  int block;  // the block's side (pixels)
+  int side;   // ... with its margins
   // Per row and column of the square: the lower of its pixels' two nearest rows and
   // columns of tile centres, and its fraction of the way to the next (as in blend()).
   int row_tile[kMaxSide], col_tile[kMaxSide];
@@ -161,7 +169,7 @@ struct ReferenceSurface::FoldScratch {
   std::vector<double> resid, weight;  // its weighted squared residual and weight (0: none)
   std::vector<double> z, w;           // the map's heights and weights (0 off the map)
   std::vector<std::uint8_t> weighed;  // w > 0
-  std::vector<double> mono;           // [i][y][x]: 1, X, Y, X², XY, Y² about the tile's centre
+  std::vector<double> mono;           // [i][y][x]: 1, X, Y, X², XY, Y² about the block's centre
   std::vector<double> shares;
   std::vector<double> across;  // the evidence's sums along rows: [residual or weight][y][x]
   std::vector<double> sums;    // ... and over the square: [d][residual or weight][y][x]
@@ -186,35 +194,44 @@ void ReferenceSurface::fold_pass() {
           near = near || folded[static_cast<std::size_t>(y) * tiles_x_ + x];
       if (near) tiles.push_back(ty * tiles_x_ + tx);
     }
-  // (Tiles are window / 8: a 64 mm window of 1 mm pixels is 8.)
-  if (tile_ + 2 * kEvidence > kMaxSide) return;
-  // Per pixel of those tiles: its share and its candidates (the eight side windows' fits
+  // The blocks of B x B tiles that hold those tiles (their other tiles' pixels have no
+  // share). (Tiles are window / 8: a 64 mm window of 1 mm pixels is 8.)
+  const int B = std::max(1, kBlockPixels / tile_), P = B * tile_;
+  if (P + 2 * kEvidence > kMaxSide) return;
+  const int blocks_x = (tiles_x_ + B - 1) / B, blocks_y = (tiles_y_ + B - 1) / B;
+  std::vector<std::uint8_t> in_block(static_cast<std::size_t>(blocks_x) * blocks_y, 0);
+  for (const int t : tiles)
+    in_block[static_cast<std::size_t>(t / tiles_x_ / B) * blocks_x + t % tiles_x_ / B] = 1;
+  std::vector<int> blocks;
+  for (std::size_t b = 0; b < in_block.size(); ++b)
+    if (in_block[b]) blocks.push_back(static_cast<int>(b));
+  // Per pixel of those blocks: its share and its candidates (the eight side windows' fits
   // and its own blend), with their weights where the pixels around gave evidence.
-  // (One block of T² per tile, each tile's pixels first: no allocation in the threads.
-  // Not initialised: each tile's thread writes its pixels; zeroing the block, tens of MB
+  // (P² a block, each block's pixels first: no allocation in the threads. Not
+  // initialised: each block's thread writes its pixels; zeroing the whole, tens of MB
   // along a door's crease, kept the other thread waiting.)
-  const std::size_t per_tile = static_cast<std::size_t>(tile_) * tile_;
+  const std::size_t per_block = static_cast<std::size_t>(P) * P;
   static_assert(std::is_trivially_destructible_v<FoldPixel>);
   const std::unique_ptr<FoldPixel[], FreeBlock> found(
-      static_cast<FoldPixel*>(std::malloc(tiles.size() * per_tile * sizeof(FoldPixel))));
+      static_cast<FoldPixel*>(std::malloc(blocks.size() * per_block * sizeof(FoldPixel))));
   if (!found) throw std::bad_alloc();
-  std::vector<int> found_count(tiles.size(), 0);
+  std::vector<int> found_count(blocks.size(), 0);
 #pragma omp parallel
   {
-    FoldScratch scratch(tile_);
-#pragma omp for schedule(dynamic, 4)
-    for (std::size_t i = 0; i < tiles.size(); ++i) {
-      const int tx = tiles[i] % tiles_x_, ty = tiles[i] / tiles_x_;
-      fold_tile_grid(tx, ty, scratch);
-      if (!fold_tile_shares(tx, ty, share, scratch)) continue;
-      fold_candidates(tx, ty, scratch);
-      found_count[i] = fold_evidence(tx, ty, scratch, found.get() + i * per_tile);
+    FoldScratch scratch(P);
+#pragma omp for schedule(dynamic, 1)
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      const int bx = blocks[i] % blocks_x, by = blocks[i] / blocks_x;
+      fold_block_grid(bx, by, scratch);
+      if (!fold_block_shares(bx, by, share, scratch)) continue;
+      fold_candidates(bx, by, scratch);
+      found_count[i] = fold_evidence(bx, by, scratch, found.get() + i * per_block);
     }
   }
   std::vector<FoldPixel*> pixels;  // (pointers: the lists are large)
-  for (std::size_t i = 0; i < tiles.size(); ++i)
+  for (std::size_t i = 0; i < blocks.size(); ++i)
     for (int j = 0; j < found_count[i]; ++j)
-      pixels.push_back(&found[i * per_tile + static_cast<std::size_t>(j)]);
+      pixels.push_back(&found[i * per_block + static_cast<std::size_t>(j)]);
   mark_fold_lines(pixels);
   fill_fold_weights(pixels);
   // (Every pixel's blend is kept to restore, changed or not: each is a pixel of its own.)
@@ -231,11 +248,11 @@ void ReferenceSurface::fold_pass() {
   }
 }
 
-// The scratch's rows and columns of tile centres for the tile and its margin, as blend()
+// The scratch's rows and columns of tile centres for the block and its margin, as blend()
 // finds a pixel's four nearest fits.
-void ReferenceSurface::fold_tile_grid(int tx, int ty, FoldScratch& fs) const {
+void ReferenceSurface::fold_block_grid(int bx, int by, FoldScratch& fs) const {
   const int T = tile_, e = kEvidence;
-  const int r0 = ty * T - e, c0 = tx * T - e;
+  const int r0 = by * fs.block - e, c0 = bx * fs.block - e;
   for (int x = 0; x < fs.side; ++x) {
     const double fx = (c0 + x + 0.5) / T - 0.5;
     fs.col_tile[x] = static_cast<int>(std::floor(fx)), fs.col_frac[x] = fx - fs.col_tile[x];
@@ -244,15 +261,15 @@ void ReferenceSurface::fold_tile_grid(int tx, int ty, FoldScratch& fs) const {
   }
 }
 
-// The tile's pixels' shares: the bilinear blend of their four nearest tiles'. False if
+// The block's pixels' shares: the bilinear blend of their four nearest tiles'. False if
 // none has a share.
-bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>& share,
-                                        FoldScratch& fs) const {
-  const int T = tile_, e = kEvidence;
+bool ReferenceSurface::fold_block_shares(int bx, int by, const std::vector<float>& share,
+                                         FoldScratch& fs) const {
+  const int P = fs.block, e = kEvidence;
   bool any = false;
-  for (int y = 0; y < T; ++y)
-    for (int x = 0; x < T; ++x) {
-      const int r = ty * T + y, c = tx * T + x;
+  for (int y = 0; y < P; ++y)
+    for (int x = 0; x < P; ++x) {
+      const int r = by * P + y, c = bx * P + x;
       double a = 0.0;
       if (r < map_.rows && c < map_.cols) {
         const int iy = fs.row_tile[y + e], ix = fs.col_tile[x + e];
@@ -262,7 +279,7 @@ bool ReferenceSurface::fold_tile_shares(int tx, int ty, const std::vector<float>
                share[static_cast<std::size_t>(std::clamp(iy + n / 2, 0, tiles_y_ - 1)) * tiles_x_ +
                      std::clamp(ix + n % 2, 0, tiles_x_ - 1)];
       }
-      fs.shares[static_cast<std::size_t>(y * T + x)] = a;
+      fs.shares[static_cast<std::size_t>(y * P + x)] = a;
       any = any || a > 0.0;
     }
   return any;
@@ -323,23 +340,24 @@ namespace {
 
 }  // namespace
 
-// Every candidate over the tile and its margin: the bilinear blend of the fits of the
+// Every candidate over the block and its margin: the bilinear blend of the fits of the
 // tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
 // pixel's own blend. Also each candidate's weighted squared residual and weight per
-// pixel, for the evidence. (After fold_tile_grid.)
-DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScratch& fs) const {
-  const int T = tile_, e = kEvidence, side = fs.side, s = radius_;
+// pixel, for the evidence. (After fold_block_grid.)
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScratch& fs) const {
+  const int P = fs.block, e = kEvidence, side = fs.side, s = radius_;
   const std::size_t area = static_cast<std::size_t>(side * side);
-  const int r0 = ty * T - e, c0 = tx * T - e;
+  const int r0 = by * P - e, c0 = bx * P - e;
   const int *row_tile = fs.row_tile, *col_tile = fs.col_tile;
   const double *row_frac = fs.row_frac, *col_frac = fs.col_frac;
   // A pixel's four nearest fits are at tiles (iy + n / 2, ix + n % 2), iy and ix its
-  // lower row and column of tile centres: over the tile and its margin, one of kSpan.
-  constexpr int kSpan = 3;
+  // lower row and column of tile centres: over the block and its margin, one of kSpan
+  // (a block of B tiles a side spans at most B + 2).
+  constexpr int kSpan = kMaxSpan;
   const int spans_y = row_tile[side - 1] - row_tile[0] + 1, spans_x = col_tile[side - 1] - col_tile[0] + 1;
   // Per pixel: the map's height and weight (0 off the map), the monomials 1, X, Y, X²,
-  // XY, Y² of its position about the tile's centre.
-  const double uc = map_.u0 + (tx * T + 0.5 * T) * map_.pixel, vc = map_.v0 + (ty * T + 0.5 * T) * map_.pixel;
+  // XY, Y² of its position about the block's centre.
+  const double uc = map_.u0 + (bx * P + 0.5 * P) * map_.pixel, vc = map_.v0 + (by * P + 0.5 * P) * map_.pixel;
   for (int y = 0; y < side; ++y)
     for (int x = 0; x < side; ++x) {
       const std::size_t p = static_cast<std::size_t>(y * side + x);
@@ -365,7 +383,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
   const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
   for (int d = 0; d < kOwn; ++d) {
     const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
-    // The fit (dx, dy) from each tile the pixels blend, re-expanded about the tile's
+    // The fit (dx, dy) from each tile the pixels blend, re-expanded about the block's
     // centre, or none: beyond the map, or a window beside the map's or the panel's edge,
     // mostly empty, that fits its few pixels closely and extrapolates wildly.
     // Per tile: the six coefficients, the window's mean square and 1 (for the blend's
@@ -374,13 +392,13 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
     bool valid[kSpan + 1][kSpan + 1] = {};
     for (int gy = 0; gy <= spans_y; ++gy)
       for (int gx = 0; gx <= spans_x; ++gx) {
-        const int by = std::clamp(row_tile[0] + gy, 0, tiles_y_ - 1),
-                  bx = std::clamp(col_tile[0] + gx, 0, tiles_x_ - 1);
-        const int ny = by + dy, nx = bx + dx;
+        const int ty = std::clamp(row_tile[0] + gy, 0, tiles_y_ - 1),
+                  tx = std::clamp(col_tile[0] + gx, 0, tiles_x_ - 1);
+        const int ny = ty + dy, nx = tx + dx;
         if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) continue;
         const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
         valid[gy][gx] =
-            q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(by) * tiles_x_ + bx].weight;
+            q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(ty) * tiles_x_ + tx].weight;
         if (!valid[gy][gx]) continue;
         // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
         const double a = (uc - q.cu) * local_scale_, b = (vc - q.cv) * local_scale_;
@@ -427,7 +445,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
     }
   }
   // The pixel's own blend, as blend() made it, and its four fits' windows' mean square
-  // blended alike (the tile's pixels').
+  // blended alike (the block's pixels').
   double* f = fs.f.data() + kOwn * area;
   double* own_ms = fs.ms.data() + kOwn * area;
   std::uint8_t* have = fs.have.data() + kOwn * area;
@@ -439,7 +457,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
       const int r = r0 + y, c = c0 + x;
       f[p] = ref_[static_cast<std::size_t>(r) * map_.cols + c];
       have[p] = std::isfinite(f[p]);
-      if (!have[p] || y < e || y >= e + T || x < e || x >= e + T) continue;
+      if (!have[p] || y < e || y >= e + P || x < e || x >= e + P) continue;
       const int iy = row_tile[y], ix = col_tile[x];
       const double ay = row_frac[y], ax = col_frac[x];
       double sum = 0.0, ws = 0.0;
@@ -459,43 +477,43 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int tx, int ty, FoldScr
                    fs.resid.data() + d * area, fs.weight.data() + d * area);
 }
 
-// Per pixel of the tile with a share: its clean candidates, weighted by how well they
+// Per pixel of the block with a share: its clean candidates, weighted by how well they
 // follow the (2 kEvidence + 1)² pixels around it.
-DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int tx, int ty, FoldScratch& fs, FoldPixel* out) const {
+DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int bx, int by, FoldScratch& fs, FoldPixel* out) const {
   int count = 0;
-  const int T = tile_, e = kEvidence, side = fs.side;
-  const std::size_t square = static_cast<std::size_t>(T * T);
+  const int P = fs.block, e = kEvidence, side = fs.side;
+  const std::size_t square = static_cast<std::size_t>(P * P);
 
   // Each candidate's weighted squared residuals and weights summed over the square
   // around each pixel: along rows, then down columns.
   for (int d = 0; d < kCandidates; ++d) {
     const std::size_t base = static_cast<std::size_t>(d * side * side);
     double* across_resid = fs.across.data();
-    double* across_weight = fs.across.data() + static_cast<std::size_t>(side * T);
+    double* across_weight = fs.across.data() + static_cast<std::size_t>(side * P);
     for (int y = 0; y < side; ++y)
-      for (int x = 0; x < T; ++x) {
+      for (int x = 0; x < P; ++x) {
         double sr = 0.0, sw = 0.0;
         for (int i = 0; i <= 2 * e; ++i) {
           const std::size_t j = base + static_cast<std::size_t>(y * side + x + i);
           sr += fs.resid[j], sw += fs.weight[j];
         }
-        across_resid[y * T + x] = sr, across_weight[y * T + x] = sw;
+        across_resid[y * P + x] = sr, across_weight[y * P + x] = sw;
       }
     double* sum_resid = fs.sums.data() + 2 * d * square;
     double* sum_weight = sum_resid + square;
-    for (int y = 0; y < T; ++y)
-      sum_down(T, across_resid + y * T, across_weight + y * T, sum_resid + y * T, sum_weight + y * T);
+    for (int y = 0; y < P; ++y)
+      sum_down(P, across_resid + y * P, across_weight + y * P, sum_resid + y * P, sum_weight + y * P);
   }
-  for (int y = 0; y < T; ++y)
-    for (int x = 0; x < T; ++x) {
-      const int r = ty * T + y, c = tx * T + x;
+  for (int y = 0; y < P; ++y)
+    for (int x = 0; x < P; ++x) {
+      const int r = by * P + y, c = bx * P + x;
       if (r >= map_.rows || c >= map_.cols) continue;
       const std::size_t k = static_cast<std::size_t>(r) * map_.cols + c;
       if (!(map_.weight[k] > 0.0f) || !std::isfinite(ref_[k])) continue;
-      const double a = fs.shares[static_cast<std::size_t>(y * T + x)];
+      const double a = fs.shares[static_cast<std::size_t>(y * P + x)];
       if (!(a > 0.0)) continue;
       const std::size_t at = static_cast<std::size_t>((y + e) * side + x + e),
-                        own = static_cast<std::size_t>(y * T + x);
+                        own = static_cast<std::size_t>(y * P + x);
       FoldPixel px;
       px.k = k, px.share = static_cast<float>(a);
       double best_ms = std::numeric_limits<double>::infinity();

@@ -94,11 +94,11 @@ class ReferenceSurface {
   };
   void fold_pass();
   struct FoldScratch;
-  void fold_tile_grid(int tx, int ty, FoldScratch& fs) const;
-  bool fold_tile_shares(int tx, int ty, const std::vector<float>& share, FoldScratch& fs) const;
-  void fold_candidates(int tx, int ty, FoldScratch& fs) const;
-  // Writes the tile's pixels with a share to out (room for tile²); returns their count.
-  int fold_evidence(int tx, int ty, FoldScratch& fs, FoldPixel* out) const;
+  void fold_block_grid(int bx, int by, FoldScratch& fs) const;
+  bool fold_block_shares(int bx, int by, const std::vector<float>& share, FoldScratch& fs) const;
+  void fold_candidates(int bx, int by, FoldScratch& fs) const;
+  // Writes the block's pixels with a share to out (room for the block's); returns their count.
+  int fold_evidence(int bx, int by, FoldScratch& fs, FoldPixel* out) const;
   bool crosses_fold(const FoldScratch& fs, std::size_t at, const bool* clean) const;
   // The slope (dw/du, dw/dv) of a tile's quadratic at a point of the map plane.
   std::array<double, 2> slope_at(const Quadratic& q, double u, double v) const;
