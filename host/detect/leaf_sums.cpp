@@ -227,6 +227,13 @@ struct TriangleBatch {
   float f[3][kBatch];     // centroid's position in its cell (edge = 1)
   std::int32_t cell[3][kBatch];
 
+  // Stored coordinates to metres, all at once.
+  void scale(float s) {
+    for (auto& vertex : v)
+      for (auto& axis : vertex)
+        for (float& x : axis) x *= s;
+  }
+
   DENTMARK_HOT_LOOP void compute(const LeafGrid& grid) {
     const float cells_max = static_cast<float>((1 << grid.depth) - 1);
 #pragma omp simd
@@ -459,13 +466,14 @@ class LeafFiler {
       }
       const auto tri = mesh.triangle(i);
       for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3f p = mesh.vertex(tri[k]);
+        const Eigen::Vector3f p = mesh.stored_vertex(tri[k]);
         for (int a = 0; a < 3; ++a) batch.v[k][a][j] = p[a];
       }
     }
     for (int j = m; j < kBatch; ++j)  // the tail repeats the last triangle; never summed
       for (int k = 0; k < 3; ++k)
         for (int a = 0; a < 3; ++a) batch.v[k][a][j] = batch.v[k][a][m - 1];
+    if (const float s = mesh.scale(); s != 1.0f) batch.scale(s);  // (as MeshView::vertex)
   }
 
   std::uint64_t key_of(const TriangleBatch& t, int j) const {

@@ -41,14 +41,18 @@ class MeshView {
   std::size_t vertex_count() const { return vertex_count_; }
   std::size_t triangle_count() const { return triangle_count_; }
 
-  Eigen::Vector3f vertex(std::size_t i) const {
+  Eigen::Vector3f vertex(std::size_t i) const { return stored_vertex(i) * scale_; }
+  // A vertex as stored, before scale() takes it to metres (for loops that scale many at
+  // once, or skip it at 1).
+  Eigen::Vector3f stored_vertex(std::size_t i) const {
     // One load per float: a copy of all three at once became 8 + 4-byte loads whose
     // floats were then read back through the stack (a store-forwarding stall per vertex).
     const std::byte* p = vertex_address(i);
     float x, y, z;
     std::memcpy(&x, p, sizeof x), std::memcpy(&y, p + 4, sizeof y), std::memcpy(&z, p + 8, sizeof z);
-    return Eigen::Vector3f(x, y, z) * scale_;
+    return {x, y, z};
   }
+  float scale() const { return scale_; }
   std::array<std::uint32_t, 3> triangle(std::size_t i) const {
     std::array<std::uint32_t, 3> t;
     std::memcpy(t.data(), triangles_ + i * triangle_stride_, sizeof t);
