@@ -46,16 +46,10 @@ constexpr int kBatch = 64;                 // triangles whose geometry is comput
 constexpr std::size_t kModeBlock = 16384;  // triangles per open/direct decision
 constexpr int kRecheckEvery = 16;          // direct blocks between two open ones
 
-// Records name their leaf by its cell in the bucket's cube, x | y << 10 | z << 20 (a
-// bucket is at most 2^10 leaves a side); pass 2 gives the leaves their Morton order.
-std::uint32_t pack_cell(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-  return x | y << 10 | z << 20;
-}
-
 // The sums of some triangles in one leaf (an open leaf's), 28 bytes. The centroid is kept
 // as the area-weighted mean position in the leaf, in 1/65536 of its edge (15 nm at 1 mm).
 struct Record {
-  std::uint32_t cell;  // pack_cell of the leaf in its bucket
+  std::uint32_t cell;  // the leaf's Morton code in its bucket: its key's low bits (at most 30)
   float area;          // Σ a_i
   float an[3];         // Σ a_i N_i
   std::uint16_t mean[3];
@@ -226,6 +220,7 @@ struct TriangleBatch {
   float area[kBatch];     // a_i
   float f[3][kBatch];     // centroid's position in its cell (edge = 1)
   std::int32_t cell[3][kBatch];
+  std::uint64_t packed[kBatch];  // the cell as one number, x | y << 21 | z << 42 (to compare)
 
   // Stored coordinates to metres, all at once.
   void scale(float s) {
@@ -247,6 +242,8 @@ struct TriangleBatch {
       an[0][j] = nx, an[1][j] = ny, an[2][j] = nz;
       area[j] = std::sqrt(nx * nx + ny * ny + nz * nz);
       locate(grid, cells_max, 0, j), locate(grid, cells_max, 1, j), locate(grid, cells_max, 2, j);
+      packed[j] = static_cast<std::uint64_t>(cell[0][j]) | static_cast<std::uint64_t>(cell[1][j]) << 21 |
+                  static_cast<std::uint64_t>(cell[2][j]) << 42;
     }
   }
   // The centroid's cell along axis a, as LeafGrid::cell to the last bit (the same
@@ -298,7 +295,7 @@ class BucketSummer {
       }
     }
     order_.resize(sums_.size());
-    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = morton(sums_[i].cell) << 32 | i;
+    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = std::uint64_t{sums_[i].cell} << 32 | i;
     sort_by_morton();
     return sums_.size();
   }
@@ -367,13 +364,14 @@ class BucketSummer {
     float an[3] = {0, 0, 0};
     float af[3] = {0, 0, 0};
   };
+  // A single's cell as Record::cell.
   std::uint32_t cell_of(const Single& r) const {
-    return pack_cell(code_.cell(r.pos[0]), code_.cell(r.pos[1]), code_.cell(r.pos[2]));
+    return static_cast<std::uint32_t>(
+        LinearOctree::encode({static_cast<int>(code_.cell(r.pos[0])), static_cast<int>(code_.cell(r.pos[1])),
+                              static_cast<int>(code_.cell(r.pos[2]))}));
   }
-  // The octant of the bucket's cube holding a cell (pack_cell's layout): each axis's top bit.
-  std::uint32_t octant(std::uint32_t cell) const {
-    return (cell >> top_bit_ & 1) | (cell >> (10 + top_bit_) & 1) << 1 | (cell >> (20 + top_bit_) & 1) << 2;
-  }
+  // The octant of the bucket's cube holding a cell: its code's top three bits.
+  std::uint32_t octant(std::uint32_t cell) const { return cell >> octant_shift_ & 7; }
   // An empty hash table for up to `records` leaves, at most half full.
   void start_table(std::size_t records) {
     std::size_t size = 16;
@@ -381,11 +379,6 @@ class BucketSummer {
     shift_ = 32;
     for (std::size_t s = size; s > 1; s >>= 1) --shift_;
     slots_.assign(size, -1);
-  }
-  std::uint64_t morton(std::uint32_t cell) const {
-    const std::uint32_t m = code_.cell_mask;
-    return LinearOctree::encode(
-        {static_cast<int>(cell & m), static_cast<int>(cell >> 10 & m), static_cast<int>(cell >> 20 & m)});
   }
   // mean: the triangles' mean position in the leaf (edge = 1).
   void add(std::uint32_t cell, std::uint32_t count, float area, const float an[3], const float mean[3]) {
@@ -403,7 +396,7 @@ class BucketSummer {
   }
 
   const PositionCode code_;
-  const int top_bit_ = std::max(std::popcount(code_.cell_mask) - 1, 0);
+  const int octant_shift_ = std::max(3 * std::popcount(code_.cell_mask) - 3, 0);
   std::vector<Record> octant_sums_[8];
   std::vector<Single> octant_singles_[8];
   int shift_ = 32;
@@ -482,14 +475,19 @@ class LeafFiler {
 
   // Sensor order: a leaf's triangles meet their open leaf.
   DENTMARK_HOT_LOOP void sum_open(const TriangleBatch& t, int m) {
+    // The open leaf's sums are carried in registers while its triangles last, and
+    // written back when the leaf changes (the same additions in the same order).
+    OpenLeaf* l = last_;
+    OpenLeaf sums = *l;
     for (int j = 0; j < m; ++j) {
-      const Eigen::Vector3i cell(t.cell[0][j], t.cell[1][j], t.cell[2][j]);
-      if (cell != last_cell_ || last_->count == 0xffff) {  // mostly the same leaf
+      const std::uint64_t cell = t.packed[j];
+      if (cell != last_cell_ || sums.count == 0xffff) {  // mostly the same leaf
+        *l = sums;
         if (cell == before_cell_ && before_->count != 0xffff) {
           std::swap(last_, before_), std::swap(last_cell_, before_cell_);
         } else {
           OpenLeaf* const was = last_;
-          const std::uint64_t key = LinearOctree::encode(cell);
+          const std::uint64_t key = key_of(t, j);
           last_ = &open_[(key * 0x9E3779B97F4A7C15ull) >> (64 - kOpenLeafBits)];
           if (last_->key != key || last_->count == 0xffff) {
             ++misses_;
@@ -500,13 +498,15 @@ class LeafFiler {
           before_ = was, before_cell_ = was == last_ ? kNoCell : last_cell_;
           last_cell_ = cell;
         }
+        l = last_;
+        sums = *l;
       }
-      OpenLeaf& l = *last_;
       const float a = t.area[j];
-      l.count += 1;
-      l.area += a;
-      for (int k = 0; k < 3; ++k) l.an[k] += t.an[k][j], l.af[k] += a * t.f[k][j];
+      sums.count += 1;
+      sums.area += a;
+      for (int k = 0; k < 3; ++k) sums.an[k] += t.an[k][j], sums.af[k] += a * t.f[k][j];
     }
+    *l = sums;
   }
 
   // Random order: one record per triangle.
@@ -521,9 +521,7 @@ class LeafFiler {
 
   void file(const OpenLeaf& l) {
     Record& r = store_.sums.append(l.key >> low_bits_);
-    const Eigen::Vector3i cell = LinearOctree::decode(l.key);
-    const std::uint32_t m = code_.cell_mask;
-    r.cell = pack_cell(cell.x() & m, cell.y() & m, cell.z() & m);
+    r.cell = static_cast<std::uint32_t>(l.key & ((std::uint64_t{1} << low_bits_) - 1));
     r.area = l.area;
     for (int k = 0; k < 3; ++k)
       r.an[k] = l.an[k], r.mean[k] = quantize(l.area > 0.0f ? l.af[k] / l.area : 0.5f);
@@ -539,11 +537,11 @@ class LeafFiler {
   // The leaf of the last triangle, and the one before it: in sensor order a row of
   // triangles crossing a leaf's side alternates between the two (42 % of the changes of
   // leaf on a door), and going back to it needs no key.
-  inline static const Eigen::Vector3i kNoCell = Eigen::Vector3i::Constant(-1);
+  static constexpr std::uint64_t kNoCell = ~std::uint64_t{0};  // (no packed cell)
   OpenLeaf* last_ = &open_[0];
-  Eigen::Vector3i last_cell_ = kNoCell;
+  std::uint64_t last_cell_ = kNoCell;  // TriangleBatch::packed
   OpenLeaf* before_ = &open_[0];
-  Eigen::Vector3i before_cell_ = kNoCell;
+  std::uint64_t before_cell_ = kNoCell;
   bool direct_ = false;
   std::size_t misses_ = 0;  // leaf changes that found no open leaf, this block
 };
@@ -553,7 +551,8 @@ class LeafFiler {
 OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
                                std::size_t* record_bytes) {
   const std::size_t n = mesh.triangle_count();
-  // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side (pack_cell).
+  // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side
+  // (Record::cell, 30 bits).
   const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
   const int low_bits = 3 * (grid.depth - bucket_levels);
   const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
