@@ -140,7 +140,7 @@ std::vector<float> ReferenceSurface::fold_shares() const {
   return share;
 }
 
-// One thread's working arrays for a tile and the kEvidence pixels around it (side x side),
+// One thread's working arrays for a block and the kEvidence pixels around it (side x side),
 // candidate d's at [d][y][x].
 struct ReferenceSurface::FoldScratch {
   explicit FoldScratch(int block_side)
