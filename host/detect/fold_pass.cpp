@@ -70,7 +70,8 @@ constexpr int kOwn = 8;
 constexpr int kBlockPixels = 32;
 // The largest block (pixels) plus its evidence margins the pass handles.
 constexpr int kMaxSide = 64;
-// The most rows (columns) of tile centres a block and its margins span.
+// The most rows (columns) of tile centres a block and its margins span (tiles are at
+// least 4 pixels: reference_surface.cpp).
 constexpr int kMaxSpan = kBlockPixels / 4 + 2;
 // Pixels without evidence take it from pixels at most this many rings away.
 constexpr int kFillRings = 24;
@@ -184,24 +185,21 @@ void ReferenceSurface::fold_pass() {
   bool any = false;
   for (std::size_t t = 0; t < share.size(); ++t) folded[t] = share[t] > 0.0f, any = any || folded[t];
   if (!any) return;
-  // A pixel blends the shares of its four nearest tiles: the tiles around a folded one.
-  std::vector<int> tiles;
+  // Blocks of B x B tiles. A pixel blends the shares of its four nearest tiles, so the
+  // pass takes the blocks that hold a tile next to a folded one (their other tiles'
+  // pixels have no share). (Tiles are window / 8: a 64 mm window of 1 mm pixels is 8.)
+  const int B = std::max(1, kBlockPixels / tile_), P = B * tile_;
+  if (P + 2 * kEvidence > kMaxSide) return;
+  const int blocks_x = (tiles_x_ + B - 1) / B, blocks_y = (tiles_y_ + B - 1) / B;
+  std::vector<std::uint8_t> in_block(static_cast<std::size_t>(blocks_x) * blocks_y, 0);
   for (int ty = 0; ty < tiles_y_; ++ty)
     for (int tx = 0; tx < tiles_x_; ++tx) {
       bool near = false;
       for (int y = std::max(0, ty - 1); y <= std::min(tiles_y_ - 1, ty + 1); ++y)
         for (int x = std::max(0, tx - 1); x <= std::min(tiles_x_ - 1, tx + 1); ++x)
           near = near || folded[static_cast<std::size_t>(y) * tiles_x_ + x];
-      if (near) tiles.push_back(ty * tiles_x_ + tx);
+      if (near) in_block[static_cast<std::size_t>(ty / B) * blocks_x + tx / B] = 1;
     }
-  // The blocks of B x B tiles that hold those tiles (their other tiles' pixels have no
-  // share). (Tiles are window / 8: a 64 mm window of 1 mm pixels is 8.)
-  const int B = std::max(1, kBlockPixels / tile_), P = B * tile_;
-  if (P + 2 * kEvidence > kMaxSide) return;
-  const int blocks_x = (tiles_x_ + B - 1) / B, blocks_y = (tiles_y_ + B - 1) / B;
-  std::vector<std::uint8_t> in_block(static_cast<std::size_t>(blocks_x) * blocks_y, 0);
-  for (const int t : tiles)
-    in_block[static_cast<std::size_t>(t / tiles_x_ / B) * blocks_x + t % tiles_x_ / B] = 1;
   std::vector<int> blocks;
   for (std::size_t b = 0; b < in_block.size(); ++b)
     if (in_block[b]) blocks.push_back(static_cast<int>(b));
