@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "components.h"
+#include "dilate.h"
 
 namespace dentmark::detect {
 
@@ -25,7 +26,7 @@ cv::Mat border_zone(const HeightMap& map) {
     op[k] = outside[static_cast<std::size_t>(lp[k])] ? 255 : 0;
   const int rad = std::max(2, static_cast<int>(std::lround(0.003 / h)));
   cv::Mat zone;
-  cv::dilate(out_mask, zone, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  dilate_in_strips(out_mask, zone, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   zone &= weight > 0.0f;
   return zone;
 }

@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <opencv2/imgproc.hpp>
 
+#include "dilate.h"
+
 namespace dentmark::detect {
 namespace {
 
@@ -49,7 +51,7 @@ const char* design_reason(const CandidateShape& shape, const DetectConfig& cfg) 
 cv::Mat design_surroundings(const cv::Mat& design, double pixel) {
   const int rad = std::max(2, static_cast<int>(std::lround(0.008 / pixel)));
   cv::Mat out;
-  cv::dilate(design, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  dilate_in_strips(design, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   return out;
 }
 
@@ -57,10 +59,11 @@ cv::Mat design_surroundings(const cv::Mat& design, const cv::Mat& border_design,
                             double pixel) {
   const int band = static_cast<int>(std::lround(kBorderBand / pixel));
   cv::Mat near_edge, near_band;
-  cv::dilate(edge_zone, near_edge, cv::getStructuringElement(cv::MORPH_RECT, {2 * band + 1, 2 * band + 1}));
+  dilate_in_strips(edge_zone, near_edge,
+                   cv::getStructuringElement(cv::MORPH_RECT, {2 * band + 1, 2 * band + 1}));
   const int rad = std::max(1, static_cast<int>(std::lround(kBesideBorder / pixel)));
-  cv::dilate(border_design & near_edge, near_band,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  dilate_in_strips(border_design & near_edge, near_band,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   return design_surroundings(design | (border_design & ~near_edge), pixel) | near_band;
 }
 

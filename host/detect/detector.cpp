@@ -22,6 +22,7 @@
 #include "dentmark/host/ingest/units.h"
 #include "design_rules.h"
 #include "deviation.h"
+#include "dilate.h"
 #include "findings.h"
 #include "holes.h"
 #include "measure_candidate.h"
@@ -304,8 +305,8 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   }
   {
     const int rad = std::max(2, static_cast<int>(std::lround(0.002 / h)));
-    cv::dilate(hole_zone, hole_zone,
-               cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+    dilate_in_strips(hole_zone, hole_zone,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
   }
   cand &= ~hole_zone;
 

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "box_mean.h"
+#include "dilate.h"
 #include "median.h"
 #include "threads.h"
 
@@ -172,13 +173,13 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
       // small door).
       const cv::Mat square = cv::getStructuringElement(cv::MORPH_RECT, {5, 5});
       if (keep_border_candidates) {
-        cv::dilate(cand, grown, square);
+        dilate_in_strips(cand, grown, square);
         keep_border_pieces(grown, valid, interior);
-        cv::dilate(off_skin, off_skin_grown, square);
+        dilate_in_strips(off_skin, off_skin_grown, square);
         grown |= off_skin_grown;
       } else {
         cand |= off_skin;  // (this iteration's candidates are not needed after this)
-        cv::dilate(cand, grown, square);
+        dilate_in_strips(cand, grown, square);
       }
       const std::uint8_t* g = grown.ptr<std::uint8_t>();
 #pragma omp parallel for schedule(static)
