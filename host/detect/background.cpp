@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <utility>
+#include <vector>
 
 #include "dentmark/host/ingest/units.h"
 #include "threads.h"
@@ -149,25 +151,31 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
       }
     }
 
-  // Pieces: cells joined to the 26 around them.
+  // Pieces: cells joined to the 26 around them. The pairs are found side by side; the
+  // pieces do not depend on the order they are joined in (each is numbered by its first
+  // cell, its cells listed in order).
+  std::vector<std::vector<std::pair<int, int>>> pairs(kChunks);
+#pragma omp parallel for schedule(static)
+  for (std::size_t p = 0; p < kChunks; ++p)
+    for (std::size_t a = cells.size() * p / kChunks; a < cells.size() * (p + 1) / kChunks; ++a) {
+      const Eigen::Vector3i at = LinearOctree::decode(cells[a].key);
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const Eigen::Vector3i nb = at + Eigen::Vector3i(dx, dy, dz);
+            if ((nb.array() < 0).any()) continue;
+            const std::uint64_t key = LinearOctree::encode(nb);
+            if (key <= cells[a].key) continue;  // each pair once
+            const auto it = std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(a) + 1, cells.end(),
+                                             key, [](const Cell& c, std::uint64_t k) { return c.key < k; });
+            if (it != cells.end() && it->key == key)
+              pairs[p].emplace_back(static_cast<int>(a), static_cast<int>(it - cells.begin()));
+          }
+    }
   std::vector<int> parent(cells.size());
   std::iota(parent.begin(), parent.end(), 0);
-  for (std::size_t a = 0; a < cells.size(); ++a) {
-    const Eigen::Vector3i at = LinearOctree::decode(cells[a].key);
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const Eigen::Vector3i nb = at + Eigen::Vector3i(dx, dy, dz);
-          if ((nb.array() < 0).any()) continue;
-          const std::uint64_t key = LinearOctree::encode(nb);
-          if (key <= cells[a].key) continue;  // each pair once
-          const auto it = std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(a) + 1, cells.end(),
-                                           key, [](const Cell& c, std::uint64_t k) { return c.key < k; });
-          if (it != cells.end() && it->key == key)
-            parent[static_cast<std::size_t>(find(parent, static_cast<int>(a)))] =
-                find(parent, static_cast<int>(it - cells.begin()));
-        }
-  }
+  for (const auto& part : pairs)
+    for (const auto& [a, b] : part) parent[static_cast<std::size_t>(find(parent, a))] = find(parent, b);
   struct Piece {
     double area = 0.0, w = 0.0, view = 0.0;  // Σ a, Σ a w, Σ a / r²
     std::vector<int> cells;

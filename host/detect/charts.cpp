@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "threads.h"
+
 namespace dentmark::detect {
 namespace {
 
@@ -50,14 +52,37 @@ int nearest_axis(const std::vector<Eigen::Vector3d>& axes, const Eigen::Vector3d
 
 // Coarse nodes of the tree, in key order, with coherent normals.
 std::vector<Node> coarse_nodes(const LinearOctree& tree, int shift) {
+  const auto& leaves = tree.leaves();
+  const auto node_of = [&](std::size_t l) { return leaves[l].key >> shift; };
+  // The leaves in one run of whole nodes per thread: a node's sums in leaf order, as one
+  // thread would sum them.
+  const auto parts = static_cast<std::size_t>(detail::thread_count());
+  std::vector<std::size_t> cut(parts + 1, leaves.size());
+  cut[0] = 0;
+  for (std::size_t p = 1; p < parts; ++p) {
+    std::size_t l = std::max(cut[p - 1], leaves.size() * p / parts);
+    while (l > 0 && l < leaves.size() && node_of(l) == node_of(l - 1)) ++l;
+    cut[p] = l;
+  }
+  std::vector<std::vector<Node>> part_nodes(parts);
+  std::vector<std::vector<Eigen::Vector3d>> part_sums(parts);
+  detail::for_each_part(parts, [&](std::size_t p) {
+    std::vector<Node>& nodes = part_nodes[p];
+    std::vector<Eigen::Vector3d>& sums = part_sums[p];
+    for (std::size_t i = cut[p]; i < cut[p + 1]; ++i) {
+      const OctreeLeaf& l = leaves[i];
+      const std::uint64_t k = node_of(i);
+      if (nodes.empty() || nodes.back().key != k)
+        nodes.push_back({k, 0.0, Eigen::Vector3d::Zero()}), sums.emplace_back(0, 0, 0);
+      nodes.back().area += l.area;
+      sums.back() += l.sum_an.cast<double>();
+    }
+  });
   std::vector<Node> nodes;
   std::vector<Eigen::Vector3d> sums;
-  for (const OctreeLeaf& l : tree.leaves()) {
-    const std::uint64_t k = l.key >> shift;
-    if (nodes.empty() || nodes.back().key != k)
-      nodes.push_back({k, 0.0, Eigen::Vector3d::Zero()}), sums.emplace_back(0, 0, 0);
-    nodes.back().area += l.area;
-    sums.back() += l.sum_an.cast<double>();
+  for (std::size_t p = 0; p < parts; ++p) {
+    nodes.insert(nodes.end(), part_nodes[p].begin(), part_nodes[p].end());
+    sums.insert(sums.end(), part_sums[p].begin(), part_sums[p].end());
   }
   // Incoherent nodes take the previous coherent node's normal (the next one's at the start).
   std::size_t first_coherent = nodes.size();

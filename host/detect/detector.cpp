@@ -29,6 +29,7 @@
 #include "median.h"
 #include "patch_normal.h"
 #include "stray_points.h"
+#include "threads.h"
 
 namespace dentmark::detect {
 namespace {
@@ -166,21 +167,19 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   const LinearOctree& tree = *tree_ptr;
   st.depth = tree.depth();
   st.leaves = tree.leaves().size();
-  for (const auto& l : tree.leaves()) st.surface_area += l.area;
   lap("octree");
-  {
-    // Every stride-th leaf with 4 triangles or more (NaN marks the others).
-    const std::size_t stride = std::max<std::size_t>(1, tree.leaves().size() / 100000);
-    std::vector<double> sig((tree.leaves().size() + stride - 1) / stride);
-#pragma omp parallel for schedule(static)
-    for (std::size_t j = 0; j < sig.size(); ++j)
-      sig[j] = tree.leaves()[j * stride].count >= 4 ? tree.stats(j * stride, j * stride + 1).sigma
-                                                    : std::numeric_limits<double>::quiet_NaN();
-    std::erase_if(sig, [](double x) { return std::isnan(x); });
-    st.noise_floor_sigma = median_of(sig);
-    for (auto& x : sig) x = std::abs(x - st.noise_floor_sigma);
-    st.noise_floor_spread = 1.4826 * median_of(std::move(sig));
-  }
+  // The surface's area, and the leaves' normal spread (eq. 3): its median and robust
+  // spread over every stride-th leaf with 4 triangles or more. Side by side (serial sums).
+  detail::side_by_side([&] { for (const auto& l : tree.leaves()) st.surface_area += l.area; },
+                       [&] {
+                         const std::size_t stride = std::max<std::size_t>(1, tree.leaves().size() / 100000);
+                         std::vector<double> sig;
+                         for (std::size_t l = 0; l < tree.leaves().size(); l += stride)
+                           if (tree.leaves()[l].count >= 4) sig.push_back(tree.stats(l, l + 1).sigma);
+                         st.noise_floor_sigma = median_of(sig);
+                         for (auto& x : sig) x = std::abs(x - st.noise_floor_sigma);
+                         st.noise_floor_spread = 1.4826 * median_of(std::move(sig));
+                       });
   // The leaf threshold: a feature of feature_angle's spread seen through the noise
   // (sqrt(noise_floor² + feature_angle²)), and never within the noise's own tail. A leaf
   // of a dozen noisy normals scatters about the floor by ~40 % of it: at twice the target
@@ -317,9 +316,11 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   // ... or the reference's fold lines (a character line's rounding, which the fits from
   // either side leave: reference_surface.h), so that the line is one design feature.
   cv::Mat fold_px(rows, cols, CV_8U, cv::Scalar(0));
-  if (const auto& folds = reference.fold_lines(); !folds.empty())
+  if (const auto& folds = reference.fold_lines(); !folds.empty()) {
+#pragma omp parallel for schedule(static)
     for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
       if (folds[static_cast<std::size_t>(k)] && !hole_zone.data[k]) octree_px.data[k] = fold_px.data[k] = 255;
+  }
   cv::Mat any = cand | octree_px;
   const cv::Mat not_surface = any | spike;                       // left out of the normals' plane fits
   const cv::Mat not_ring = not_surface | edge_zone | hole_zone;  // and of the local references
@@ -336,8 +337,8 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
     for (auto& comp : comps)
       if (!comp.pixels.empty()) comp.shape = shape_of(comp.pixels, map, edge_zone);
   }
-  out.labels.assign(map.size(), -1);
-  out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size());
+  detail::side_by_side([&] { out.labels.assign(map.size(), -1); },
+                       [&] { out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size()); });
   const double sigma3 = std::max(deviation.scale_sigma.front(), 1e-9);
 
   // Design features by shape, and the pieces next to them; those that touch a border

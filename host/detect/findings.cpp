@@ -75,9 +75,12 @@ namespace {
 // Every pixel label of the detection's maps.
 template <typename F>
 void for_each_label(Detection& out, F&& f) {
-  for (auto& l : out.labels) f(l);
-  for (auto& chart : out.more_charts)
-    for (auto& l : chart.labels) f(l);
+  const auto each = [&](std::vector<std::int32_t>& labels) {
+#pragma omp parallel for schedule(static)
+    for (std::size_t k = 0; k < labels.size(); ++k) f(labels[k]);
+  };
+  each(out.labels);
+  for (auto& chart : out.more_charts) each(chart.labels);
 }
 
 }  // namespace
@@ -85,16 +88,12 @@ void for_each_label(Detection& out, F&& f) {
 void order_findings(Detection& out) {
   std::stable_sort(out.defects.begin(), out.defects.end(),
                    [](const Finding& a, const Finding& b) { return a.defect.score > b.defect.score; });
-  {  // labels hold pre-sort indices (kept in id until now)
-    std::vector<std::int32_t> old_to_new(out.defects.size());
-    for (std::size_t i = 0; i < out.defects.size(); ++i) {
-      if (out.defects[i].defect.id >= out.defects.size())
-        throw std::logic_error("order_findings: a defect's id is not its index");
-      old_to_new[out.defects[i].defect.id] = static_cast<std::int32_t>(i);
-    }
-    for_each_label(out, [&](std::int32_t& l) {
-      if (l >= 0) l = old_to_new[static_cast<std::size_t>(l)];
-    });
+  // Labels hold pre-sort indices (kept in id until now).
+  std::vector<std::int32_t> old_to_new(out.defects.size());
+  for (std::size_t i = 0; i < out.defects.size(); ++i) {
+    if (out.defects[i].defect.id >= out.defects.size())
+      throw std::logic_error("order_findings: a defect's id is not its index");
+    old_to_new[out.defects[i].defect.id] = static_cast<std::int32_t>(i);
   }
   std::vector<std::int32_t> merged_into(out.defects.size(), -1);
   std::vector<Finding> kept;
@@ -122,7 +121,7 @@ void order_findings(Detection& out) {
   }
   out.defects = std::move(kept);
   for_each_label(out, [&](std::int32_t& l) {
-    if (l >= 0) l = merged_into[static_cast<std::size_t>(l)];
+    if (l >= 0) l = merged_into[static_cast<std::size_t>(old_to_new[static_cast<std::size_t>(l)])];
   });
   std::uint32_t id = 1;
   for (auto& f : out.defects) f.defect.id = id++;
