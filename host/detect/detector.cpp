@@ -170,16 +170,19 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   lap("octree");
   // The surface's area, and the leaves' normal spread (eq. 3): its median and robust
   // spread over every stride-th leaf with 4 triangles or more. Side by side (serial sums).
-  detail::side_by_side([&] { for (const auto& l : tree.leaves()) st.surface_area += l.area; },
-                       [&] {
-                         const std::size_t stride = std::max<std::size_t>(1, tree.leaves().size() / 100000);
-                         std::vector<double> sig;
-                         for (std::size_t l = 0; l < tree.leaves().size(); l += stride)
-                           if (tree.leaves()[l].count >= 4) sig.push_back(tree.stats(l, l + 1).sigma);
-                         st.noise_floor_sigma = median_of(sig);
-                         for (auto& x : sig) x = std::abs(x - st.noise_floor_sigma);
-                         st.noise_floor_spread = 1.4826 * median_of(std::move(sig));
-                       });
+  const auto sum_area = [&] {
+    for (const auto& l : tree.leaves()) st.surface_area += l.area;
+  };
+  const auto measure_noise_floor = [&] {
+    const std::size_t stride = std::max<std::size_t>(1, tree.leaves().size() / 100000);
+    std::vector<double> sig;
+    for (std::size_t l = 0; l < tree.leaves().size(); l += stride)
+      if (tree.leaves()[l].count >= 4) sig.push_back(tree.stats(l, l + 1).sigma);
+    st.noise_floor_sigma = median_of(sig);
+    for (auto& x : sig) x = std::abs(x - st.noise_floor_sigma);
+    st.noise_floor_spread = 1.4826 * median_of(std::move(sig));
+  };
+  detail::side_by_side(sum_area, measure_noise_floor);
   // The leaf threshold: a feature of feature_angle's spread seen through the noise
   // (sqrt(noise_floor² + feature_angle²)), and never within the noise's own tail. A leaf
   // of a dozen noisy normals scatters about the floor by ~40 % of it: at twice the target
