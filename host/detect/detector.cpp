@@ -284,8 +284,10 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
       tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 4;
   tree_ptr.reset();
   const cv::Mat edge_zone = border_zone(map);
-  const cv::Mat weight(rows, cols, CV_32F, const_cast<float*>(map.weight.data()));
-  const cv::Mat interior = (weight > 0.0f) & ~edge_zone;
+  cv::Mat interior(rows, cols, CV_8U);  // seen, off the border zone
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+    interior.data[k] = map.weight[static_cast<std::size_t>(k)] > 0.0f && !edge_zone.data[k] ? 255 : 0;
   const std::vector<int> scales = detection_scales(h);
   ReferenceSurface reference(map, cfg.reference_window);
   reference.look_for_folds(chart_w.squaredNorm() == 0.0);  // not on a chart (reference_surface.h)

@@ -97,6 +97,7 @@ std::vector<float> ReferenceSurface::fold_shares() const {
   std::vector<std::uint8_t> flagged(fits_.size(), 0);
   const int s = radius_;
   bool any = false;
+#pragma omp parallel for schedule(static) reduction(|| : any)
   for (int ty = 0; ty < tiles_y_; ++ty)
     for (int tx = 0; tx < tiles_x_; ++tx) {
       const Quadratic& own = fits_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
@@ -588,9 +589,17 @@ bool ReferenceSurface::crosses_fold(const FoldScratch& fs, std::size_t at, const
 // The fold's own line: pixels whose best candidate leaves far more around them than
 // the fold region's typical pixel (its noise), there being no side to take.
 void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel*>& pixels) {
+  // (Gathered side by side, in any order: the median is one value.)
   std::vector<float> errors;
-  for (const FoldPixel* px : pixels)
-    if (px->evidence) errors.push_back(px->fit_error);
+#pragma omp parallel
+  {
+    std::vector<float> mine;
+#pragma omp for schedule(static) nowait
+    for (std::size_t i = 0; i < pixels.size(); ++i)
+      if (pixels[i]->evidence) mine.push_back(pixels[i]->fit_error);
+#pragma omp critical
+    errors.insert(errors.end(), mine.begin(), mine.end());
+  }
   if (errors.empty()) return;
   auto middle = errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2);
   std::nth_element(errors.begin(), middle, errors.end());

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 
 #include "background.h"
@@ -227,16 +228,17 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
   const std::size_t n = map.size();
-  // Each leaf's pixel, and how many leaves fall in each pixel row.
-  std::vector<std::int32_t> pix(leaves.size(), -1);
+  // Each leaf's pixel (-1: none), and how many leaves fall in each pixel row. (Every
+  // entry is written here, by both threads: no serial fill first.)
+  const std::unique_ptr<std::int32_t[]> pix(new std::int32_t[leaves.size()]);
   std::vector<std::int64_t> row_leaves(static_cast<std::size_t>(map.rows), 0);
   std::int64_t* per_row = row_leaves.data();
 #pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
-  for (std::int64_t i = 0; i < count; ++i)
-    if (on_map(static_cast<std::size_t>(i))) {
-      pix[i] = static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()));
-      if (pix[i] >= 0) ++per_row[pix[i] / map.cols];
-    }
+  for (std::int64_t i = 0; i < count; ++i) {
+    pix[i] = on_map(static_cast<std::size_t>(i)) ? static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()))
+                                                 : -1;
+    if (pix[i] >= 0) ++per_row[pix[i] / map.cols];
+  }
   // Bands of pixel rows with as many leaves each (the map's empty window and borders
   // would leave a thread idle otherwise). A band's pixels are summed by one thread, in
   // leaf order: the same sums whatever the number of bands.

@@ -5,6 +5,8 @@
 #include <limits>
 #include <vector>
 
+#include "threads.h"
+
 namespace dentmark::detect {
 
 Box bounding_box(const ingest::MeshView& mesh) {
@@ -29,14 +31,14 @@ Box middle_box(std::vector<float> (&x)[3]) {
   Box b{Eigen::Vector3f::Constant(-std::numeric_limits<float>::max()),
         Eigen::Vector3f::Constant(std::numeric_limits<float>::max())};
   if (x[0].size() < 100) return b;
-  for (int a = 0; a < 3; ++a) {
+  detail::for_each_part(3, [&](std::size_t a) {  // the axes side by side
     const auto at = [&](double f) {
       const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
       std::nth_element(x[a].begin(), k, x[a].end());
       return *k;
     };
-    b.lo[a] = at(0.01), b.hi[a] = at(0.99);
-  }
+    b.lo[static_cast<int>(a)] = at(0.01), b.hi[static_cast<int>(a)] = at(0.99);
+  });
   const Eigen::Vector3f m = Eigen::Vector3f::Constant(0.25f * (b.hi - b.lo).maxCoeff());
   b.lo -= m, b.hi += m;
   return b;
