@@ -387,7 +387,7 @@ class BucketSummer {
     while (slots_[h] >= 0 && sums_[static_cast<std::size_t>(slots_[h])].cell != cell) h = (h + 1) & mask;
     if (slots_[h] < 0) {
       slots_[h] = static_cast<std::int32_t>(sums_.size());
-      sums_.push_back(Sum{cell});
+      sums_.emplace_back().cell = cell;  // (in place: Sum{cell} went through the stack)
     }
     Sum& l = sums_[static_cast<std::size_t>(slots_[h])];
     l.count += count;
