@@ -117,18 +117,13 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
     }
     // Median first: a lone outlier spike cannot survive it; a defect of a few pixels can.
     // (The noise's σ meanwhile: both are serial.)
-#pragma omp parallel sections num_threads(std::min(2, detail::thread_count()))
-    {
-#pragma omp section
-      out.noise = robust_sigma(dev, interior);
-#pragma omp section
-      {
-        if (scales.front() >= 3)
-          cv::medianBlur(dz, dm, 3);
-        else
-          dz.copyTo(dm);
-      }
-    }
+    detail::side_by_side([&] { out.noise = robust_sigma(dev, interior); },
+                         [&] {
+                           if (scales.front() >= 3)
+                             cv::medianBlur(dz, dm, 3);
+                           else
+                             dz.copyTo(dm);
+                         });
     float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
     const float* dmp = dm.ptr<float>();
     std::uint8_t *sp = spike.ptr<std::uint8_t>(), *osk = off_skin.ptr<std::uint8_t>();
@@ -151,9 +146,8 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
     // σ, side by side (each is serial).
     for (std::size_t s = 0; s < scales.size(); ++s)
       box_mean(dz, wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), num[s]);
-    const int sigma_threads = std::min(static_cast<int>(scales.size()), detail::thread_count());
-#pragma omp parallel for schedule(dynamic, 1) num_threads(sigma_threads)
-    for (std::size_t s = 0; s < scales.size(); ++s) scale_sigma[s] = robust_sigma(num[s], interior);
+    detail::for_each_part(scales.size(),
+                          [&](std::size_t s) { scale_sigma[s] = robust_sigma(num[s], interior); });
     for (std::size_t s = 0; s < scales.size(); ++s) {
       const float* rs = num[s].ptr<float>();
       const float thr =

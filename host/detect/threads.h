@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <functional>
+#include <utility>
 
 #ifdef _OPENMP
 #include <omp.h>
