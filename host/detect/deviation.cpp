@@ -140,7 +140,6 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
       wdm[k] = wvp[k] * dmp[k];
     }
     cand.create(rows, cols, CV_8U);
-    cand.setTo(0);
     std::uint8_t* cp = cand.ptr<std::uint8_t>();
     // The windowed means where the window is at least 30 % full, NaN elsewhere; then their
     // σ, side by side (each is serial).
@@ -148,13 +147,20 @@ Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& refer
       box_mean(dz, wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), num[s]);
     detail::for_each_part(scales.size(),
                           [&](std::size_t s) { scale_sigma[s] = robust_sigma(num[s], interior); });
+    // A candidate stands out at one scale or more (one pass over the scales' means).
+    std::vector<const float*> means(scales.size());
+    std::vector<float> thresholds(scales.size());
     for (std::size_t s = 0; s < scales.size(); ++s) {
-      const float* rs = num[s].ptr<float>();
-      const float thr =
+      means[s] = num[s].ptr<float>();
+      thresholds[s] =
           static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));
+    }
 #pragma omp parallel for schedule(static)
-      for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q)
-        cp[q] |= (vp[q] && std::abs(rs[q]) > thr) ? 255 : 0;
+    for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q) {
+      bool out_of_noise = false;
+      for (std::size_t s = 0; s < means.size(); ++s)
+        out_of_noise = out_of_noise || std::abs(means[s][q]) > thresholds[s];  // NaN compares false
+      cp[q] = vp[q] && out_of_noise ? 255 : 0;
     }
     if (it + 1 < iterations) {
       // Candidates (grown by 2 pixels) and pixels off the skin leave the next fit. On a

@@ -94,12 +94,6 @@ void fill_aliasing_gaps(HeightMap& map, float layer) {
 
 }  // namespace
 
-long HeightMap::pixel_of(double pu, double pv) const {
-  const double c = std::floor((pu - u0) / pixel), r = std::floor((pv - v0) / pixel);
-  if (c < 0 || r < 0 || c >= cols || r >= rows) return -1;
-  return static_cast<long>(r) * cols + static_cast<long>(c);
-}
-
 HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
                            std::vector<std::uint8_t>* background_leaf, const Eigen::Vector3d& chart_w) {
   const auto& leaves = tree.leaves();
@@ -210,15 +204,15 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
-  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m).
+  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), and the map's extent
+  // over them, in one pass.
   const auto count = static_cast<std::int64_t>(leaves.size());
   std::vector<Eigen::Vector3f> q(leaves.size());
-#pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < count; ++i)
-    if (leaves[i].area > 0.0f) q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {
+    if (!(leaves[i].area > 0.0f)) continue;
+    q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
     if (!on_map(static_cast<std::size_t>(i))) continue;
     umin = std::min<double>(umin, q[i].x()), umax = std::max<double>(umax, q[i].x());
     vmin = std::min<double>(vmin, q[i].y()), vmax = std::max<double>(vmax, q[i].y());
@@ -235,9 +229,10 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   std::int64_t* per_row = row_leaves.data();
 #pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
   for (std::int64_t i = 0; i < count; ++i) {
-    pix[i] = on_map(static_cast<std::size_t>(i)) ? static_cast<std::int32_t>(map.pixel_of(q[i].x(), q[i].y()))
-                                                 : -1;
-    if (pix[i] >= 0) ++per_row[pix[i] / map.cols];
+    int r = 0, c = 0;
+    const bool on = on_map(static_cast<std::size_t>(i)) && map.cell_of(q[i].x(), q[i].y(), r, c);
+    pix[i] = on ? r * map.cols + c : -1;
+    per_row[r] += on;
   }
   // Bands of pixel rows with as many leaves each (the map's empty window and borders
   // would leave a thread idle otherwise). A band's pixels are summed by one thread, in

@@ -4,6 +4,7 @@
 // is a height field over its image, and so over a plane near its view direction.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -36,8 +37,18 @@ struct HeightMap {
     return origin + axes.transpose() * Eigen::Vector3d(pu, pv, pw);
   }
   Eigen::Vector3d to_map(const Eigen::Vector3d& p) const { return axes * (p - origin); }
+  // Row and column of the pixel holding map point (pu, pv); false outside.
+  bool cell_of(double pu, double pv, int& row, int& col) const {
+    const double c = std::floor((pu - u0) / pixel), r = std::floor((pv - v0) / pixel);
+    if (!(c >= 0 && r >= 0 && c < cols && r < rows)) return false;  // (NaN: outside)
+    row = static_cast<int>(r), col = static_cast<int>(c);
+    return true;
+  }
   // Pixel holding map point (pu, pv), or -1 outside.
-  long pixel_of(double pu, double pv) const;
+  long pixel_of(double pu, double pv) const {
+    int r = 0, c = 0;
+    return cell_of(pu, pv, r, c) ? static_cast<long>(r) * cols + c : -1;
+  }
 };
 
 // Projects the leaves. 'w' points to the frame origin's side (the sensor's) of the plane,
