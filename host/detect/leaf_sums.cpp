@@ -525,10 +525,34 @@ class LeafFiler {
   std::size_t misses_ = 0;  // leaf changes that found no open leaf, this block
 };
 
+// A share of the buckets in pass 2 not yet taken, [lo, hi): taken one at a time from
+// either end, by its owner and by a thread taking it over.
+class BucketRange {
+ public:
+  void reset(std::size_t lo, std::size_t hi) {
+    range_.store(static_cast<std::uint64_t>(lo) << 32 | static_cast<std::uint64_t>(hi));
+  }
+  // The next bucket from the low (or high) end into k; false when none is left.
+  bool take(bool from_low, std::size_t& k) {
+    std::uint64_t r = range_.load(std::memory_order_relaxed);
+    for (;;) {
+      const std::uint64_t lo = r >> 32, hi = r & 0xffffffffu;
+      if (lo >= hi) return false;
+      const std::uint64_t next = from_low ? (lo + 1) << 32 | hi : lo << 32 | (hi - 1);
+      if (range_.compare_exchange_weak(r, next, std::memory_order_relaxed)) {
+        k = static_cast<std::size_t>(from_low ? lo : hi - 1);
+        return true;
+      }
+    }
+  }
+
+ private:
+  std::atomic<std::uint64_t> range_{0};
+};
+
 }  // namespace
 
-OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
-                               std::size_t* record_bytes) {
+OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid, LeafBuildStats* stats) {
   const std::size_t n = mesh.triangle_count();
   // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side
   // (Record::cell, 30 bits).
@@ -550,12 +574,12 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
       filer.run_slice(mesh, static_cast<std::uint32_t>(s), s * slice, std::min(n, (s + 1) * slice));
   }
 
-  // Pass 2: buckets in key order, split between threads by record count. A bucket has at
-  // least as many records as leaves, so a thread's leaves fit in its buckets' share of a
-  // block sized for the records. Threads work in pairs: the first writes its leaves
-  // backwards, ending where the second's records begin, and the second forwards from
-  // there, so a pair's leaves are one run without being moved (with two threads, the
-  // whole window). The block beyond the window is never touched (address space only).
+  // Pass 2: buckets in key order, a share of them per thread by record count. A bucket has
+  // at least as many records as leaves, so a share's leaves fit in its buckets' part of a
+  // block sized for the records. Shares come in pairs: the first is written backwards,
+  // ending where the second's records begin, and the second forwards from there, so a
+  // pair's leaves are one run (with two threads, the whole window). The block beyond the
+  // window is never touched (address space only).
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
@@ -563,53 +587,73 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
     start[k + 1] = start[k] + c;
   }
   const std::uint64_t records = start[buckets];
-  if (record_bytes) {
-    *record_bytes = 0;
+  if (stats) {
+    stats->record_bytes = 0;
     for (const auto& s : stores)
-      *record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
+      stats->record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
   }
   OctreeLeaves leaves(records);
   OctreeLeaf* const block = leaves.block();
-  std::vector<std::size_t> part_begin(static_cast<std::size_t>(threads)), part_size(part_begin.size());
+  const auto nt = static_cast<std::size_t>(threads);
+  std::vector<std::size_t> first(nt + 1, buckets);  // share s: buckets [first[s], first[s + 1])
+  for (std::size_t s = 0; s < nt; ++s)
+    first[s] = static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * s / nt) -
+                                        start.begin());
+  std::vector<BucketRange> left(nt);  // each share's buckets not yet taken
+  for (std::size_t s = 0; s < nt; ++s) left[s].reset(first[s], first[s + 1]);
+  // A thread sums its own share from the end next to its partner's share; then it takes
+  // its partner's from the far end, in the other direction, until the two meet (threads
+  // run at uneven speeds on a VM: with fixed shares one waited up to 13 ms of ~40). Each
+  // share's leaves: its owner's run and the run taken over from it.
+  struct Run {
+    std::size_t begin = 0, size = 0;
+  };
+  std::vector<Run> owned(nt), taken_over(nt);
+  std::atomic<std::size_t> buckets_taken_over{0};
 #pragma omp parallel num_threads(threads)
   {
     const auto t = static_cast<std::size_t>(thread_index());
-    const auto nt = static_cast<std::size_t>(threads);
-    const auto first_bucket = [&](std::size_t part) {
-      return static_cast<std::size_t>(std::lower_bound(start.begin(), start.end() - 1, records * part / nt) -
-                                      start.begin());
-    };
-    const std::size_t kb = first_bucket(t), ke = t + 1 == nt ? buckets : first_bucket(t + 1);
     BucketSummer summer{PositionCode(low_bits / 3)};
-    if (t % 2 == 0) {
-      std::size_t cursor = start[ke];
-      for (std::size_t k = ke; k-- > kb;) {
+    const auto sum_share = [&](std::size_t s, bool taking_over, Run& run) {
+      // Backwards from the share's end, taking buckets from its high end; or forwards from
+      // its beginning, taking them from its low end.
+      const bool backwards = (s % 2 == 0) != taking_over;
+      const std::size_t from = backwards ? start[first[s + 1]] : start[first[s]];
+      std::size_t cursor = from;
+      for (std::size_t k; left[s].take(!backwards, k);) {
         if (start[k + 1] == start[k]) continue;
-        cursor -= summer.sum(stores, k);
-        summer.write(k, low_bits, grid, block + cursor);
-      }
-      part_begin[t] = cursor, part_size[t] = start[ke] - cursor;
-    } else {
-      std::size_t cursor = start[kb];
-      for (std::size_t k = kb; k < ke; ++k) {
-        if (start[k + 1] == start[k]) continue;
+        if (taking_over) buckets_taken_over.fetch_add(1, std::memory_order_relaxed);
         const std::size_t written = summer.sum(stores, k);
+        if (backwards) cursor -= written;
         summer.write(k, low_bits, grid, block + cursor);
-        cursor += written;
+        if (!backwards) cursor += written;
       }
-      part_begin[t] = start[kb], part_size[t] = cursor - start[kb];
-    }
+      run = backwards ? Run{cursor, from - cursor} : Run{from, cursor - from};
+    };
+    sum_share(t, false, owned[t]);
+    if ((t ^ 1) < nt) sum_share(t ^ 1, true, taken_over[t ^ 1]);
   }
   stores.clear();
+  if (stats) stats->buckets_taken_over = buckets_taken_over.load();
+  // A share's runs made one: the run taken over (the imbalance, small) moved next to its
+  // owner's, below it in a first share and above it in a second.
+  std::vector<Run> part(nt);
+  for (std::size_t s = 0; s < nt; ++s) {
+    const Run &own = owned[s], &over = taken_over[s];
+    const std::size_t to = s % 2 == 0 ? own.begin - over.size : own.begin + own.size;
+    if (over.size > 0 && to != over.begin)
+      std::memmove(static_cast<void*>(block + to), block + over.begin, over.size * sizeof(OctreeLeaf));
+    part[s] = {s % 2 == 0 ? to : own.begin, own.size + over.size};
+  }
   // More than two threads: the pairs' runs are moved together (each to a lower address).
   std::size_t total = 0;
-  for (std::size_t p = 0; p < part_begin.size(); ++p) {
-    if (part_begin[p] != part_begin[0] + total)
-      std::memmove(static_cast<void*>(block + part_begin[0] + total), block + part_begin[p],
-                   part_size[p] * sizeof(OctreeLeaf));
-    total += part_size[p];
+  for (std::size_t p = 0; p < nt; ++p) {
+    if (part[p].begin != part[0].begin + total)
+      std::memmove(static_cast<void*>(block + part[0].begin + total), block + part[p].begin,
+                   part[p].size * sizeof(OctreeLeaf));
+    total += part[p].size;
   }
-  leaves.set_window(part_begin[0], total);
+  leaves.set_window(part[0].begin, total);
   return leaves;
 }
 

@@ -38,9 +38,14 @@ inline Eigen::Vector3f triangle_centroid(const ingest::MeshView& m, const std::a
   return (m.vertex(t[0]) + m.vertex(t[1]) + m.vertex(t[2])) * (1.0f / 3.0f);
 }
 
+// How a build went.
+struct LeafBuildStats {
+  std::size_t record_bytes = 0;        // peak memory of the records filed on the way
+  std::size_t buckets_taken_over = 0;  // buckets a thread summed for a slower one (pass 2)
+};
+
 // Leaves in Morton order, with A, S = Σ a_i N_i, Σ a_i c_i and the triangle count.
-// record_bytes, if given, receives the peak memory of the records filed on the way.
 OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid,
-                               std::size_t* record_bytes = nullptr);
+                               LeafBuildStats* stats = nullptr);
 
 }  // namespace dentmark::detect::detail

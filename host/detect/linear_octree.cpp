@@ -50,8 +50,10 @@ LinearOctree LinearOctree::build(const ingest::MeshView& mesh, double leaf_size)
   tree.depth_ = depth;
   tree.leaf_size_ = leaf_size;
   tree.origin_ = lo.cast<double>() - Eigen::Vector3d::Constant(0.5 * leaf_size);
+  detail::LeafBuildStats stats;
   tree.leaves_ = detail::accumulate_leaves(
-      mesh, {tree.origin_.cast<float>(), static_cast<float>(1.0 / leaf_size), depth}, &tree.build_bytes_);
+      mesh, {tree.origin_.cast<float>(), static_cast<float>(1.0 / leaf_size), depth}, &stats);
+  tree.build_bytes_ = stats.record_bytes;
 
   return tree;
 }
