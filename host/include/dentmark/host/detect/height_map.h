@@ -4,7 +4,6 @@
 // is a height field over its image, and so over a plane near its view direction.
 
 #include <Eigen/Core>
-#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -38,10 +37,13 @@ struct HeightMap {
   }
   Eigen::Vector3d to_map(const Eigen::Vector3d& p) const { return axes * (p - origin); }
   // Row and column of the pixel holding map point (pu, pv); false outside.
+  // (Times the pixel's inverse, which a loop computes once: two divisions a point made
+  // the map's per-leaf pixel pass divider-bound.)
   bool cell_of(double pu, double pv, int& row, int& col) const {
-    const double c = std::floor((pu - u0) / pixel), r = std::floor((pv - v0) / pixel);
-    if (!(c >= 0 && r >= 0 && c < cols && r < rows)) return false;  // (NaN: outside)
-    row = static_cast<int>(r), col = static_cast<int>(c);
+    const double inv = 1.0 / pixel;
+    const double c = (pu - u0) * inv, r = (pv - v0) * inv;
+    if (!(c >= 0.0 && r >= 0.0 && c < cols && r < rows)) return false;  // (NaN: outside)
+    row = static_cast<int>(r), col = static_cast<int>(c);               // (as floor: both >= 0)
     return true;
   }
   // Pixel holding map point (pu, pv), or -1 outside.
