@@ -27,27 +27,35 @@ constexpr int kPopulateRead = MADV_POPULATE_READ;
 #else
 constexpr int kPopulateRead = 22;  // Linux 5.14; older glibc headers lack the name
 #endif
-// Populates the mapping in 2 MB-aligned pieces, one per thread: mapping a cached 170 MB
-// scan is ~10 ms of page-table work for one thread. Returns 0 or the errno of a failure
-// (EINVAL, a kernel without MADV_POPULATE_READ, is no failure: pages then fault in).
-int populate(char* p, std::size_t size) {
+// The mapping in 2 MB-aligned pieces, one per thread: piece i of n starts at the first
+// 2 MB boundary (in the address space) from i / n of it.
+std::size_t piece_start(const char* p, std::size_t size, std::size_t n, std::size_t i) {
+  if (i == 0) return 0;
+  if (i == n) return size;
+  constexpr std::uintptr_t kAlign = std::uintptr_t{2} << 20;
+  const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p) + size / n * i;
+  return std::min(size, static_cast<std::size_t>(((a + kAlign - 1) & ~(kAlign - 1)) -
+                                                 reinterpret_cast<std::uintptr_t>(p)));
+}
+
+// madvise(advice) over the pieces side by side. Returns 0 or the errno of a failure other
+// than `harmless`.
+int advise_in_pieces(char* p, std::size_t size, int advice, int harmless) {
   const auto pieces = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-  // Piece i starts at the first 2 MB boundary (in the address space) from i / pieces of it.
-  const auto start = [&](std::size_t i) {
-    if (i == 0) return std::size_t{0};
-    if (i == pieces) return size;
-    constexpr std::uintptr_t kAlign = std::uintptr_t{2} << 20;
-    const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(p) + size / pieces * i;
-    return std::min(size, static_cast<std::size_t>(((a + kAlign - 1) & ~(kAlign - 1)) -
-                                                   reinterpret_cast<std::uintptr_t>(p)));
-  };
   int err = 0;
 #pragma omp parallel for schedule(static, 1) reduction(max : err)
   for (std::size_t i = 0; i < pieces; ++i) {
-    const std::size_t b = start(i), e = start(i + 1);
-    if (b < e && ::madvise(p + b, e - b, kPopulateRead) != 0 && errno != EINVAL) err = std::max(err, errno);
+    const std::size_t b = piece_start(p, size, pieces, i), e = piece_start(p, size, pieces, i + 1);
+    if (b < e && ::madvise(p + b, e - b, advice) != 0 && errno != harmless) err = std::max(err, errno);
   }
   return err;
+}
+
+// Populates the mapping side by side: mapping a cached 170 MB scan is ~10 ms of
+// page-table work for one thread. Returns 0 or the errno of a failure (EINVAL, a kernel
+// without MADV_POPULATE_READ, is no failure: pages then fault in).
+int populate(char* p, std::size_t size) {
+  return advise_in_pieces(p, size, kPopulateRead, EINVAL);
 }
 
 }  // namespace
@@ -87,7 +95,12 @@ MappedFile::MappedFile(const std::string& path) {
 }
 
 MappedFile::~MappedFile() {
-  if (mapped_) ::munmap(const_cast<char*>(data_), size_);
+  if (!mapped_) return;
+  // Unmapping a populated 170 MB scan is 3.5 ms of page-table work for one thread, under
+  // the address space's write lock. Dropping its pages first takes the read lock, so the
+  // pieces go side by side and what is left to unmap is empty (2 ms in all).
+  advise_in_pieces(const_cast<char*>(data_), size_, MADV_DONTNEED, 0);
+  ::munmap(const_cast<char*>(data_), size_);
 }
 
 }  // namespace dentmark::ingest::detail
