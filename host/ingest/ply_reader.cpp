@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -579,23 +580,41 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     not_three |= static_cast<std::uint8_t>(q[0]) ^ 3u;
   }
   if (not_three != 0 || largest >= limit) return std::nullopt;
-  // Every coordinate finite, and on the way the bounding box (the octree needs it).
+  // Every coordinate finite, and on the way the bounding box (the octree needs it) and
+  // each block of vertices' box (VertexBlocks).
+  constexpr auto kBlock = static_cast<std::int64_t>(VertexBlocks::kSize);
+  const std::int64_t blocks = (nv + kBlock - 1) / kBlock;
+  auto boxes = std::make_shared<VertexBlocks>();
+  boxes->lo.resize(static_cast<std::size_t>(blocks));
+  boxes->hi.resize(static_cast<std::size_t>(blocks));
   std::int64_t bad = 0;
   const float inf = std::numeric_limits<float>::infinity();
   float x0 = inf, y0 = inf, z0 = inf, x1 = -inf, y1 = -inf, z1 = -inf;
 #pragma omp parallel for schedule(static) reduction(+ : bad) reduction(min : x0, y0, z0) reduction(max : x1, y1, z1)
-  for (std::int64_t i = 0; i < nv; ++i) {
-    float c[3];
-    std::memcpy(c, vertices + static_cast<std::size_t>(i) * vertex_stride, sizeof c);
-    bad += !(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]));
-    x0 = std::min(x0, c[0]), y0 = std::min(y0, c[1]), z0 = std::min(z0, c[2]);
-    x1 = std::max(x1, c[0]), y1 = std::max(y1, c[1]), z1 = std::max(z1, c[2]);
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    // (Named scalars, not arrays: so the loop vectorises as the whole-scan one did.)
+    float lx = inf, ly = inf, lz = inf, hx = -inf, hy = -inf, hz = -inf;
+    std::int64_t nonfinite = 0;
+    const std::int64_t end = std::min(nv, (b + 1) * kBlock);
+    for (std::int64_t i = b * kBlock; i < end; ++i) {
+      float c[3];
+      std::memcpy(c, vertices + static_cast<std::size_t>(i) * vertex_stride, sizeof c);
+      nonfinite += !(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]));
+      lx = std::min(lx, c[0]), ly = std::min(ly, c[1]), lz = std::min(lz, c[2]);
+      hx = std::max(hx, c[0]), hy = std::max(hy, c[1]), hz = std::max(hz, c[2]);
+    }
+    bad += nonfinite;
+    x0 = std::min(x0, lx), y0 = std::min(y0, ly), z0 = std::min(z0, lz);
+    x1 = std::max(x1, hx), y1 = std::max(y1, hy), z1 = std::max(z1, hz);
+    // Scaled as vertex() scales (scale > 0 keeps min and max apart).
+    boxes->lo[static_cast<std::size_t>(b)] = Eigen::Vector3f(lx, ly, lz) * scale;
+    boxes->hi[static_cast<std::size_t>(b)] = Eigen::Vector3f(hx, hy, hz) * scale;
   }
   if (bad != 0) return std::nullopt;
   MeshView view(reinterpret_cast<const std::byte*>(vertices), vertex_count, vertex_stride,
                 reinterpret_cast<const std::byte*>(faces + 1), face_count, 13, scale);
-  // Scaled as vertex() scales (scale > 0 keeps min and max apart).
   view.set_bounds(Eigen::Vector3f(x0, y0, z0) * scale, Eigen::Vector3f(x1, y1, z1) * scale);
+  view.set_vertex_blocks(std::move(boxes));
   return view;
 }
 

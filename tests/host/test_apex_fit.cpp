@@ -1,13 +1,21 @@
 // The apex depth of a dent or bump from raw samples: unbiased on smooth profiles of
 // different shapes, robust to outliers, from an off-centre first guess.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <numbers>
 #include <random>
+#include <string>
 
 #include "dentmark/host/detect/apex_fit.h"
+#include "dentmark/host/detect/height_map.h"
+#include "dentmark/host/detect/linear_octree.h"
+#include "dentmark/host/ingest/mesh_writer.h"
+#include "dentmark/host/ingest/read_mesh.h"
 
 namespace dentmark::detect {
 namespace {
@@ -164,6 +172,84 @@ TEST(ApexFit, TooFewSamplesOrNoRadiusGiveNothing) {
   EXPECT_FALSE(fit_apex_height(s, 0.0015, 1.0).has_value());                       // a handful inside 1.5 mm
   EXPECT_FALSE(fit_apex_height(s, 0.0, 1.0).has_value());
   EXPECT_FALSE(fit_apex_height({}, 0.002, 1.0).has_value());
+}
+
+// A sheet scanned row by row (the sensor's order), tilted and curved, in metres.
+ingest::Mesh scanned_sheet(int rows, int cols, double spacing, bool shuffled) {
+  ingest::Mesh m;
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const double x = c * spacing, y = r * spacing;
+      m.vertices.emplace_back(static_cast<float>(x), static_cast<float>(y),
+                              static_cast<float>(0.9 + 0.2 * x + 0.3 * (x * x + y * y)));
+    }
+  std::vector<std::uint32_t> order(m.vertices.size());
+  for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;  // new index of vertex i
+  if (shuffled) {
+    std::mt19937 rng(6);
+    std::shuffle(order.begin(), order.end(), rng);
+    std::vector<Eigen::Vector3f> moved(m.vertices.size());
+    for (std::size_t i = 0; i < order.size(); ++i) moved[order[i]] = m.vertices[i];
+    m.vertices = std::move(moved);
+  }
+  for (int r = 0; r + 1 < rows; ++r)
+    for (int c = 0; c + 1 < cols; ++c) {
+      const auto a = static_cast<std::uint32_t>(r * cols + c), b = a + 1,
+                 d = a + static_cast<std::uint32_t>(cols), e = d + 1;
+      m.triangles.push_back({order[a], order[b], order[e]});
+      m.triangles.push_back({order[a], order[e], order[d]});
+    }
+  return m;
+}
+
+TEST(PixelSamples, SkippingVertexBlocksOutsideTheSelectionLosesNoSample) {
+  // A binary PLY used in place knows each block of vertices' box, and blocks whose box
+  // misses every selected pixel are skipped. The samples must be those of a full pass,
+  // in sensor order (most blocks skipped) and shuffled (none), for small selections, one
+  // at the map's corner and one that covers it all.
+  for (const bool shuffled : {false, true}) {
+    SCOPED_TRACE(shuffled);
+    const std::string path =
+        (std::filesystem::temp_directory_path() / ("dentmark_samples_" + std::to_string(::getpid()) + ".ply"))
+            .string();
+    ingest::write_ply(path, scanned_sheet(300, 400, 0.0005, shuffled));
+    const ingest::Scan scan = ingest::open_scan(path);
+    std::filesystem::remove(path);
+    ASSERT_TRUE(scan.in_place);
+    ASSERT_NE(scan.mesh.vertex_blocks(), nullptr);
+    ingest::MeshView plain = scan.mesh;
+    plain.set_vertex_blocks(nullptr);
+    const LinearOctree tree = LinearOctree::build(scan.mesh, 0.001);
+    const HeightMap map = build_height_map(tree, 0.001, 0.003, nullptr, Eigen::Vector3d::Zero());
+    std::mt19937 rng(2);
+    // The first pixel with surface: at the map's corner, the edge of the boxes' reach.
+    const auto corner = static_cast<std::size_t>(
+        std::find_if(map.weight.begin(), map.weight.end(), [](float w) { return w > 0.0f; }) -
+        map.weight.begin());
+    for (const int regions : {1, 6, 0, -1}) {  // 0: the corner pixel alone; -1: every pixel
+      SCOPED_TRACE(regions);
+      std::vector<std::uint8_t> select(map.size(), regions < 0 ? 1 : 0);
+      select[corner] = 1;
+      std::uniform_int_distribution<int> row(0, map.rows - 12), col(0, map.cols - 12);
+      for (int i = 0; i < regions; ++i) {
+        const int r0 = row(rng), c0 = col(rng);
+        for (int r = r0; r < r0 + 11; ++r)
+          for (int c = c0; c < c0 + 11; ++c) select[static_cast<std::size_t>(r) * map.cols + c] = 1;
+      }
+      const PixelSamples skipping(scan.mesh, map, select), full(plain, map, select);
+      ASSERT_EQ(skipping.size(), full.size());
+      EXPECT_GT(full.size(), 0u);
+      std::size_t differing = 0;
+      for (std::size_t k = 0; k < map.size(); ++k) {
+        if (!select[k]) continue;
+        std::vector<Eigen::Vector3d> a, b;
+        skipping.append(static_cast<std::int32_t>(k), a);
+        full.append(static_cast<std::int32_t>(k), b);
+        differing += a != b;
+      }
+      EXPECT_EQ(differing, 0u);
+    }
+  }
 }
 
 }  // namespace

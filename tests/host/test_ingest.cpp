@@ -756,6 +756,44 @@ TEST(Scan, ScannerLayoutIsUsedInPlace) {
   EXPECT_EQ(scaled.mesh.bounds_max(), hi);
 }
 
+TEST(Scan, AScanUsedInPlaceKnowsEachVertexBlocksBox) {
+  // 700 vertices of a wavy sheet in mm: two whole blocks of 256 and a partial one. Each
+  // block's box is its vertices' own, scaled as they are; a Mesh's view has none.
+  Mesh m;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> jitter(-0.3f, 0.3f);
+  for (int i = 0; i < 700; ++i)
+    m.vertices.emplace_back(static_cast<float>(i % 35) + jitter(rng),
+                            static_cast<float>(i / 35) + jitter(rng),
+                            5.0f * std::sin(0.1f * static_cast<float>(i)));
+  for (std::uint32_t r = 0; r + 1 < 20; ++r)
+    for (std::uint32_t c = 0; c + 1 < 35; ++c) {
+      const std::uint32_t a = r * 35 + c;
+      m.triangles.push_back({a, a + 1, a + 36});
+      m.triangles.push_back({a, a + 36, a + 35});
+    }
+  const std::string path = temp_path("blocks.ply");
+  write_ply(path, m);
+  ReadOptions mm;
+  mm.scale_to_m = 1e-3;
+  const Scan scan = open_scan(path, mm);
+  ASSERT_TRUE(scan.in_place);
+  const VertexBlocks* blocks = scan.mesh.vertex_blocks();
+  ASSERT_NE(blocks, nullptr);
+  ASSERT_EQ(blocks->lo.size(), 3u);
+  ASSERT_EQ(blocks->hi.size(), 3u);
+  for (std::size_t b = 0; b < 3; ++b) {
+    SCOPED_TRACE(b);
+    Eigen::Vector3f lo = scan.mesh.vertex(b * VertexBlocks::kSize), hi = lo;
+    for (std::size_t i = b * VertexBlocks::kSize;
+         i < std::min<std::size_t>(700, (b + 1) * VertexBlocks::kSize); ++i)
+      lo = lo.cwiseMin(scan.mesh.vertex(i)), hi = hi.cwiseMax(scan.mesh.vertex(i));
+    EXPECT_EQ(blocks->lo[b], lo);
+    EXPECT_EQ(blocks->hi[b], hi);
+  }
+  EXPECT_EQ(MeshView(m).vertex_blocks(), nullptr);
+}
+
 TEST(Scan, AnyOtherLayoutIsReadAndGivesTheSameMesh) {
   // Polygons, big endian, doubles, ascii, 16-bit indices: read into a Mesh, same result.
   for (const auto& [name, bytes] :

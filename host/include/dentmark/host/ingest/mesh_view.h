@@ -10,10 +10,20 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
+#include <vector>
 
 #include "dentmark/host/ingest/mesh.h"
 
 namespace dentmark::ingest {
+
+// The bounding box (in metres) of each run of kSize consecutive vertices. A scanner
+// stores its points row by row, so a run is a short strip of the surface, and a pass that
+// wants the vertices of a few small regions skips the runs whose box misses them all.
+struct VertexBlocks {
+  static constexpr std::size_t kSize = 256;
+  std::vector<Eigen::Vector3f> lo, hi;  // block b: vertices [b kSize, (b + 1) kSize)
+};
 
 class MeshView {
  public:
@@ -66,6 +76,10 @@ class MeshView {
   void set_bounds(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
     min_ = min, max_ = max, has_bounds_ = true;
   }
+  // The vertex blocks' boxes, when whoever made the view measured them (the in-place PLY
+  // check does); null otherwise.
+  const VertexBlocks* vertex_blocks() const { return blocks_.get(); }
+  void set_vertex_blocks(std::shared_ptr<const VertexBlocks> blocks) { blocks_ = std::move(blocks); }
 
   // For prefetching ahead of random gathers.
   const std::byte* vertex_address(std::size_t i) const { return vertices_ + i * vertex_stride_; }
@@ -79,6 +93,7 @@ class MeshView {
   float scale_ = 1.0f;
   bool has_bounds_ = false;
   Eigen::Vector3f min_ = Eigen::Vector3f::Zero(), max_ = Eigen::Vector3f::Zero();
+  std::shared_ptr<const VertexBlocks> blocks_;
 };
 
 }  // namespace dentmark::ingest
