@@ -200,15 +200,33 @@ TEST(LinearOctree, LeafSumsAreTheSameWhateverTheThreadCount) {
   omp_set_num_threads(initial);
 }
 
-TEST(LinearOctree, LeavesAreBitIdenticalWhateverThreadTookWhichSlice) {
-  // Threads take slices of the triangles as they come free, so which thread files which
-  // slice changes from run to run; the float sums must not. Sensor order with a shuffled
-  // stretch (open leaves and single records), 11 slices, 1 to 5 threads, repeated runs.
-  std::mt19937 rng(21);
+// An n x n grid of a noisy saddle in sensor order, with its middle third of triangles
+// shuffled: open leaves and single records both.
+ingest::Mesh sensor_order_with_a_shuffled_stretch(int n, unsigned seed) {
+  std::mt19937 rng(seed);
   std::normal_distribution<double> g(0.0, 0.0001);
-  ingest::Mesh m = grid_mesh(600, 0.0005, [&](double x, double y) { return 0.1 * x * y + g(rng); });
+  ingest::Mesh m = grid_mesh(n, 0.0005, [&](double x, double y) { return 0.1 * x * y + g(rng); });
   const auto third = static_cast<std::ptrdiff_t>(m.triangles.size() / 3);
   std::shuffle(m.triangles.begin() + third, m.triangles.begin() + 2 * third, rng);
+  return m;
+}
+
+// How many leaves differ in any bit of any field (the counts must match first).
+std::size_t differing_leaves(const OctreeLeaves& x, const OctreeLeaves& y) {
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const OctreeLeaf &a = x[i], &b = y[i];
+    differing += a.key != b.key || a.count != b.count || a.area != b.area || a.sum_an != b.sum_an ||
+                 a.centroid != b.centroid;
+  }
+  return differing;
+}
+
+TEST(LinearOctree, LeavesAreBitIdenticalWhateverThreadTookWhichSlice) {
+  // Threads take slices of the triangles as they come free, so which thread files which
+  // slice changes from run to run; the float sums must not. 11 slices, 1 to 5 threads,
+  // repeated runs.
+  const ingest::Mesh m = sensor_order_with_a_shuffled_stretch(600, 21);
   const int initial = omp_get_max_threads();
   omp_set_num_threads(1);
   const LinearOctree reference = LinearOctree::build(m, 0.001);
@@ -217,13 +235,7 @@ TEST(LinearOctree, LeavesAreBitIdenticalWhateverThreadTookWhichSlice) {
     omp_set_num_threads(threads);
     const LinearOctree tree = LinearOctree::build(m, 0.001);
     ASSERT_EQ(tree.leaves().size(), reference.leaves().size());
-    std::size_t differing = 0;
-    for (std::size_t i = 0; i < tree.leaves().size(); ++i) {
-      const OctreeLeaf &a = tree.leaves()[i], &b = reference.leaves()[i];
-      differing += a.key != b.key || a.count != b.count || a.area != b.area || a.sum_an != b.sum_an ||
-                   a.centroid != b.centroid;
-    }
-    EXPECT_EQ(differing, 0u);
+    EXPECT_EQ(differing_leaves(tree.leaves(), reference.leaves()), 0u);
   }
   omp_set_num_threads(initial);
 }
@@ -233,11 +245,7 @@ TEST(LinearOctree, LeavesAreBitIdenticalWhenAThreadTakesOverAnothersBuckets) {
   // end, and the runs are moved together afterwards. Which buckets change hands depends on
   // the threads' speeds; the leaves must not. More threads than cores (2 to 5 on this
   // machine's cores or fewer) make it happen: repeated until it has, 3 times at least.
-  std::mt19937 rng(5);
-  std::normal_distribution<double> g(0.0, 0.0001);
-  ingest::Mesh m = grid_mesh(500, 0.0005, [&](double x, double y) { return 0.1 * x * y + g(rng); });
-  const auto third = static_cast<std::ptrdiff_t>(m.triangles.size() / 3);
-  std::shuffle(m.triangles.begin() + third, m.triangles.begin() + 2 * third, rng);
+  const ingest::Mesh m = sensor_order_with_a_shuffled_stretch(500, 5);
   const ingest::MeshView view(m);
   const detail::LeafGrid grid{Eigen::Vector3f(-0.2f, -0.2f, -0.2f), 1000.0f, 9};  // 1 mm, 0.51 m a side
   const int initial = omp_get_max_threads();
@@ -252,13 +260,8 @@ TEST(LinearOctree, LeavesAreBitIdenticalWhenAThreadTakesOverAnothersBuckets) {
     const OctreeLeaves leaves = detail::accumulate_leaves(view, grid, &stats);
     runs_taken_over += stats.buckets_taken_over > 0;
     ASSERT_EQ(leaves.size(), reference.size());
-    std::size_t differing = 0;
-    for (std::size_t i = 0; i < leaves.size(); ++i) {
-      const OctreeLeaf &a = leaves[i], &b = reference[i];
-      differing += a.key != b.key || a.count != b.count || a.area != b.area || a.sum_an != b.sum_an ||
-                   a.centroid != b.centroid;
-    }
-    ASSERT_EQ(differing, 0u) << "run " << run << ", " << stats.buckets_taken_over << " buckets taken over";
+    ASSERT_EQ(differing_leaves(leaves, reference), 0u)
+        << "run " << run << ", " << stats.buckets_taken_over << " buckets taken over";
   }
   omp_set_num_threads(initial);
   EXPECT_EQ(runs_taken_over, 3u);
