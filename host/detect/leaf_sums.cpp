@@ -126,7 +126,7 @@ std::uint16_t quantize(float f) {  // position in the leaf, [0, 1] -> 1/65536 st
 constexpr int kOpenLeafBits = 13;
 constexpr std::size_t kOpenLeaves = std::size_t{1} << kOpenLeafBits;
 struct OpenLeaf {
-  std::uint64_t cell = ~0ull;  // TriangleBatch::packed
+  std::uint64_t cell = ~0ull;  // TriangleBatch::pack(); never a cell's (bit 63)
   std::uint32_t count = 0;
   float area = 0.0f;
   float an[3] = {0, 0, 0};
@@ -220,7 +220,18 @@ struct TriangleBatch {
   float area[kBatch];     // a_i
   float f[3][kBatch];     // centroid's position in its cell (edge = 1)
   std::int32_t cell[3][kBatch];
-  std::uint64_t packed[kBatch];  // the cell as one number, x | y << 21 | z << 42 (to compare)
+  std::uint64_t packed[kBatch];  // the cell as one number (pack(), to compare)
+
+  // A cell as one number, x | y << 21 | z << 42, and its Morton key.
+  static constexpr int kAxisBits = 21;
+  static std::uint64_t pack(std::uint64_t x, std::uint64_t y, std::uint64_t z) {
+    return x | y << kAxisBits | z << 2 * kAxisBits;
+  }
+  static std::uint64_t key_of_packed(std::uint64_t p) {
+    constexpr std::uint64_t kAxis = (std::uint64_t{1} << kAxisBits) - 1;
+    return LinearOctree::encode({static_cast<int>(p & kAxis), static_cast<int>(p >> kAxisBits & kAxis),
+                                 static_cast<int>(p >> 2 * kAxisBits & kAxis)});
+  }
 
   // Stored coordinates to metres, all at once.
   void scale(float s) {
@@ -242,8 +253,8 @@ struct TriangleBatch {
       an[0][j] = nx, an[1][j] = ny, an[2][j] = nz;
       area[j] = std::sqrt(nx * nx + ny * ny + nz * nz);
       locate(grid, cells_max, 0, j), locate(grid, cells_max, 1, j), locate(grid, cells_max, 2, j);
-      packed[j] = static_cast<std::uint64_t>(cell[0][j]) | static_cast<std::uint64_t>(cell[1][j]) << 21 |
-                  static_cast<std::uint64_t>(cell[2][j]) << 42;
+      packed[j] = pack(static_cast<std::uint64_t>(cell[0][j]), static_cast<std::uint64_t>(cell[1][j]),
+                       static_cast<std::uint64_t>(cell[2][j]));
     }
   }
   // The centroid's cell along axis a, as LeafGrid::cell to the last bit (the same
@@ -503,10 +514,7 @@ class LeafFiler {
   }
 
   void file(const OpenLeaf& l) {
-    constexpr std::uint64_t kAxis = (std::uint64_t{1} << 21) - 1;
-    const std::uint64_t key =
-        LinearOctree::encode({static_cast<int>(l.cell & kAxis), static_cast<int>(l.cell >> 21 & kAxis),
-                              static_cast<int>(l.cell >> 42 & kAxis)});
+    const std::uint64_t key = TriangleBatch::key_of_packed(l.cell);
     Record& r = store_.sums.append(key >> low_bits_);
     r.cell = static_cast<std::uint32_t>(key & ((std::uint64_t{1} << low_bits_) - 1));
     r.area = l.area;
