@@ -24,6 +24,7 @@
 #include <new>
 #include <type_traits>
 
+#include "dentmark/common/nth_smallest.h"
 #include "dentmark/host/detect/reference_surface.h"
 #include "hot_loop.h"
 
@@ -166,15 +167,19 @@ struct ReferenceSurface::FoldScratch {
   // columns of tile centres, and its fraction of the way to the next (as in blend()).
   int row_tile[kMaxSide], col_tile[kMaxSide];
   double row_frac[kMaxSide], col_frac[kMaxSide];
-  std::vector<double> f, ms;  // the candidate's height and its windows' mean square
+  float col_frac_f[kMaxSide];
+  // Per pixel in floats (twice as many per vector as doubles): heights within centimetres
+  // of the map plane round to nanometres, as in blend(); their squared residuals, sums of
+  // 25, to a few parts in 10^7.
+  std::vector<float> f, ms;  // the candidate's height and its windows' mean square
   std::vector<std::uint8_t> have;
-  std::vector<double> resid, weight;  // its weighted squared residual and weight (0: none)
-  std::vector<double> z, w;           // the map's heights and weights (0 off the map)
+  std::vector<float> resid, weight;   // its weighted squared residual and weight (0: none)
+  std::vector<float> z, w;            // the map's heights and weights (0 off the map)
   std::vector<std::uint8_t> weighed;  // w > 0
-  std::vector<double> mono;           // [i][y][x]: 1, X, Y, X², XY, Y² about the block's centre
+  std::vector<float> mono;            // [i][y][x]: 1, X, Y, X², XY, Y² about the block's centre
   std::vector<double> shares;
-  std::vector<double> across;  // the evidence's sums along rows: [residual or weight][y][x]
-  std::vector<double> sums;    // ... and over the square: [d][residual or weight][y][x]
+  std::vector<float> across;  // the evidence's sums along rows: [residual or weight][y][x]
+  std::vector<float> sums;    // ... and over the square: [d][residual or weight][y][x]
 };
 
 void ReferenceSurface::fold_pass() {
@@ -255,6 +260,7 @@ void ReferenceSurface::fold_block_grid(int bx, int by, FoldScratch& fs) const {
   for (int x = 0; x < fs.side; ++x) {
     const double fx = (c0 + x + 0.5) / T - 0.5;
     fs.col_tile[x] = static_cast<int>(std::floor(fx)), fs.col_frac[x] = fx - fs.col_tile[x];
+    fs.col_frac_f[x] = static_cast<float>(fs.col_frac[x]);
     const double fy = (r0 + x + 0.5) / T - 0.5;
     fs.row_tile[x] = static_cast<int>(std::floor(fy)), fs.row_frac[x] = fy - fs.row_tile[x];
   }
@@ -289,16 +295,16 @@ namespace {
 // Over a run of pixels that share their four nearest tiles: the blend (A + ax B) /
 // (wa + ax wb) of the quadratics A and B at the pixels (monomials X ... YY), and the same
 // of the fits' mean squares. Separate so that it vectorises.
-[[gnu::always_inline]] inline void blend_run(int n, const double* __restrict X, const double* __restrict Y,
-                                             const double* __restrict XX, const double* __restrict XY,
-                                             const double* __restrict YY, const double* __restrict ax,
-                                             const double* __restrict A, const double* __restrict B,
-                                             double mA, double mB, double wa, double wb, double* __restrict f,
-                                             double* __restrict ms) {
+[[gnu::always_inline]] inline void blend_run(int n, const float* __restrict X, const float* __restrict Y,
+                                             const float* __restrict XX, const float* __restrict XY,
+                                             const float* __restrict YY, const float* __restrict ax,
+                                             const float* __restrict A, const float* __restrict B, float mA,
+                                             float mB, float wa, float wb, float* __restrict f,
+                                             float* __restrict ms) {
   for (int x = 0; x < n; ++x) {
-    const double a = A[0] + A[1] * X[x] + A[2] * Y[x] + A[3] * XX[x] + A[4] * XY[x] + A[5] * YY[x];
-    const double b = B[0] + B[1] * X[x] + B[2] * Y[x] + B[3] * XX[x] + B[4] * XY[x] + B[5] * YY[x];
-    const double inv = 1.0 / (wa + ax[x] * wb);
+    const float a = A[0] + A[1] * X[x] + A[2] * Y[x] + A[3] * XX[x] + A[4] * XY[x] + A[5] * YY[x];
+    const float b = B[0] + B[1] * X[x] + B[2] * Y[x] + B[3] * XX[x] + B[4] * XY[x] + B[5] * YY[x];
+    const float inv = 1.0f / (wa + ax[x] * wb);
     f[x] = (a + ax[x] * b) * inv, ms[x] = (mA + ax[x] * mB) * inv;
   }
 }
@@ -317,22 +323,22 @@ namespace {
 }
 
 // Each candidate's weighted squared residual and weight per pixel (0 without it).
-[[gnu::always_inline]] inline void evidence_terms(std::size_t n, const double* __restrict z,
-                                                  const double* __restrict w, const double* __restrict f,
+[[gnu::always_inline]] inline void evidence_terms(std::size_t n, const float* __restrict z,
+                                                  const float* __restrict w, const float* __restrict f,
                                                   const std::uint8_t* __restrict have,
-                                                  double* __restrict resid, double* __restrict weight) {
+                                                  float* __restrict resid, float* __restrict weight) {
   for (std::size_t p = 0; p < n; ++p) {
-    const double dz = z[p] - f[p];
-    resid[p] = have[p] ? w[p] * dz * dz : 0.0;
-    weight[p] = have[p] ? w[p] : 0.0;
+    const float dz = z[p] - f[p];
+    resid[p] = have[p] ? w[p] * dz * dz : 0.0f;
+    weight[p] = have[p] ? w[p] : 0.0f;
   }
 }
 
 // Rows y .. y + 2 kEvidence of the row sums (T apart, from ar and aw) added down
 // columns, in order, to sr and sw.
-[[gnu::always_inline]] inline void sum_down(int T, const double* __restrict ar, const double* __restrict aw,
-                                            double* __restrict sr, double* __restrict sw) {
-  for (int x = 0; x < T; ++x) sr[x] = 0.0, sw[x] = 0.0;
+[[gnu::always_inline]] inline void sum_down(int T, const float* __restrict ar, const float* __restrict aw,
+                                            float* __restrict sr, float* __restrict sw) {
+  for (int x = 0; x < T; ++x) sr[x] = 0.0f, sw[x] = 0.0f;
   for (int i = 0; i <= 2 * kEvidence; ++i)
     for (int x = 0; x < T; ++x) sr[x] += ar[i * T + x], sw[x] += aw[i * T + x];
 }
@@ -365,12 +371,12 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
       const std::size_t k = on_map ? static_cast<std::size_t>(r) * map_.cols + c : 0;
       const bool weighed = on_map && map_.weight[k] > 0.0f;
       fs.weighed[p] = weighed;
-      fs.w[p] = weighed ? map_.weight[k] : 0.0;
-      fs.z[p] = weighed ? map_.w[k] : 0.0;
+      fs.w[p] = weighed ? map_.weight[k] : 0.0f;
+      fs.z[p] = weighed ? map_.w[k] : 0.0f;
       const double X = weighed ? (map_.u[k] - uc) * local_scale_ : 0.0,
                    Y = weighed ? (map_.v[k] - vc) * local_scale_ : 0.0;
       const double mono[6] = {1.0, X, Y, X * X, X * Y, Y * Y};
-      for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = mono[i];
+      for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = static_cast<float>(mono[i]);
     }
   if (spans_y > kSpan || spans_x > kSpan) return;
   // The runs of columns that share their four nearest tiles: [run_start[g], run_start[g + 1]).
@@ -379,7 +385,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
     while (x < side && col_tile[x] - col_tile[0] < g) ++x;
     run_start[g] = x;
   }
-  const double *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
+  const float *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
   for (int d = 0; d < kOwn; ++d) {
     const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
     // The fit (dx, dy) from each tile the pixels blend, re-expanded about the block's
@@ -415,8 +421,8 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
     for (int gy = 0; gy < spans_y; ++gy)
       for (int gx = 0; gx < spans_x; ++gx)
         cell_ok[gy][gx] = valid[gy][gx] && valid[gy][gx + 1] && valid[gy + 1][gx] && valid[gy + 1][gx + 1];
-    double* f = fs.f.data() + d * area;
-    double* ms = fs.ms.data() + d * area;
+    float* f = fs.f.data() + d * area;
+    float* ms = fs.ms.data() + d * area;
     std::uint8_t* have = fs.have.data() + d * area;
     for (int y = 0; y < side; ++y) {
       const int gy = row_tile[y] - row_tile[0];
@@ -438,15 +444,17 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
           const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
           add_scaled(A, B, coef[gy + n / 2][gx + n % 2], alpha, beta);
         }
-        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, col_frac + x0, A, B, A[6], B[6], A[7],
-                  B[7], f + p0, ms + p0);
+        alignas(32) float Af[8], Bf[8];
+        for (int i = 0; i < 8; ++i) Af[i] = static_cast<float>(A[i]), Bf[i] = static_cast<float>(B[i]);
+        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, fs.col_frac_f + x0, Af, Bf, Af[6],
+                  Bf[6], Af[7], Bf[7], f + p0, ms + p0);
       }
     }
   }
   // The pixel's own blend, as blend() made it, and its four fits' windows' mean square
   // blended alike (the block's pixels').
-  double* f = fs.f.data() + kOwn * area;
-  double* own_ms = fs.ms.data() + kOwn * area;
+  float* f = fs.f.data() + kOwn * area;
+  float* own_ms = fs.ms.data() + kOwn * area;
   std::uint8_t* have = fs.have.data() + kOwn * area;
   for (int y = 0; y < side; ++y)
     for (int x = 0; x < side; ++x) {
@@ -468,7 +476,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
         const double wn = (n / 2 ? ay : 1.0 - ay) * (n % 2 ? ax : 1.0 - ax) + 1e-9;
         sum += wn * q.mean_square, ws += wn;
       }
-      if (have[p]) own_ms[p] = sum / ws;
+      if (have[p]) own_ms[p] = static_cast<float>(sum / ws);
     }
   // What the evidence sums.
   for (int d = 0; d < kCandidates; ++d)
@@ -487,19 +495,19 @@ DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int bx, int by, FoldScratc
   // around each pixel: along rows, then down columns.
   for (int d = 0; d < kCandidates; ++d) {
     const std::size_t base = static_cast<std::size_t>(d * side * side);
-    double* across_resid = fs.across.data();
-    double* across_weight = fs.across.data() + static_cast<std::size_t>(side * P);
+    float* across_resid = fs.across.data();
+    float* across_weight = fs.across.data() + static_cast<std::size_t>(side * P);
     for (int y = 0; y < side; ++y)
       for (int x = 0; x < P; ++x) {
-        double sr = 0.0, sw = 0.0;
+        float sr = 0.0f, sw = 0.0f;
         for (int i = 0; i <= 2 * e; ++i) {
           const std::size_t j = base + static_cast<std::size_t>(y * side + x + i);
           sr += fs.resid[j], sw += fs.weight[j];
         }
         across_resid[y * P + x] = sr, across_weight[y * P + x] = sw;
       }
-    double* sum_resid = fs.sums.data() + 2 * d * square;
-    double* sum_weight = sum_resid + square;
+    float* sum_resid = fs.sums.data() + 2 * d * square;
+    float* sum_weight = sum_resid + square;
     for (int y = 0; y < P; ++y)
       sum_down(P, across_resid + y * P, across_weight + y * P, sum_resid + y * P, sum_weight + y * P);
   }
@@ -519,7 +527,7 @@ DENTMARK_HOT_LOOP int ReferenceSurface::fold_evidence(int bx, int by, FoldScratc
       for (int d = 0; d < kCandidates; ++d) {
         const std::size_t j = static_cast<std::size_t>(d * side * side) + at;
         px.height[d] = fs.have[j] ? static_cast<float>(fs.f[j]) : std::numeric_limits<float>::quiet_NaN();
-        if (fs.have[j]) best_ms = std::min(best_ms, fs.ms[j]);
+        if (fs.have[j]) best_ms = std::min<double>(best_ms, fs.ms[j]);
       }
       // Evidence: the clean windows' residuals over the pixels around (the pixel's own
       // blend among them where its window is clean too).
@@ -601,9 +609,7 @@ void ReferenceSurface::mark_fold_lines(const std::vector<FoldPixel*>& pixels) {
     errors.insert(errors.end(), mine.begin(), mine.end());
   }
   if (errors.empty()) return;
-  auto middle = errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2);
-  std::nth_element(errors.begin(), middle, errors.end());
-  const double typical = *middle;
+  const double typical = nth_smallest(errors, errors.size() / 2);
   fold_lines_.assign(map_.size(), 0);
 #pragma omp parallel for schedule(static)
   for (std::size_t i = 0; i < pixels.size(); ++i) {
