@@ -5,6 +5,7 @@
 #include <limits>
 #include <vector>
 
+#include "dentmark/common/nth_smallest.h"
 #include "threads.h"
 
 namespace dentmark::detect {
@@ -33,9 +34,7 @@ Box middle_box(std::vector<float> (&x)[3]) {
   if (x[0].size() < 100) return b;
   detail::for_each_part(3, [&](std::size_t a) {  // the axes side by side
     const auto at = [&](double f) {
-      const auto k = x[a].begin() + static_cast<std::ptrdiff_t>(f * static_cast<double>(x[a].size() - 1));
-      std::nth_element(x[a].begin(), k, x[a].end());
-      return *k;
+      return nth_smallest(x[a], static_cast<std::size_t>(f * static_cast<double>(x[a].size() - 1)));
     };
     b.lo[static_cast<int>(a)] = at(0.01), b.hi[static_cast<int>(a)] = at(0.99);
   });

@@ -29,11 +29,9 @@ ScaleEvidence measure_scale(const MeshView& mesh) {
     double d2 = 0.0;
     for (auto& values : axis) {
       if (values.empty()) break;
-      // Two selections, not a sort: a third of the time, the same percentiles.
+      // Two selections, not a sort: the same percentiles in a fraction of the time.
       const auto at = [&](std::size_t percent) {
-        const auto it = values.begin() + static_cast<std::ptrdiff_t>(values.size() * percent / 100);
-        std::nth_element(values.begin(), it, values.end());
-        return *it;
+        return nth_smallest(values, values.size() * percent / 100);
       };
       const double lo = at(2), hi = at(98);
       d2 += (hi - lo) * (hi - lo);
