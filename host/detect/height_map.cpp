@@ -145,8 +145,11 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
         // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
         // metres long), whose whole area lands in one leaf and would tilt the plane.
         const double a = std::min(static_cast<double>(l.area), max_leaf_area);
-        const Eigen::Vector3d d = l.centroid.cast<double>() - x0;
-        cs.area += a, cs.p += a * d, cs.pp += a * d * d.transpose();
+        const Eigen::Vector3d d = l.centroid.cast<double>() - x0, ad = a * d;
+        cs.area += a, cs.p += ad;
+        // (The upper triangle: the lower one is the same.)
+        for (int r = 0; r < 3; ++r)
+          for (int c = r; c < 3; ++c) cs.pp(r, c) += ad(r) * d(c);
       }
     }
     Sums all;
@@ -156,6 +159,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
     const Eigen::Vector3d mean = all.p / A;  // relative to x0
     const Eigen::Vector3d c = x0 + mean;
+    all.pp.triangularView<Eigen::StrictlyLower>() = all.pp.transpose();
     const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
     Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
@@ -204,16 +208,18 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
   map.has_viewpoint = map.viewpoint.z() > 0.1;
 
-  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), and the map's extent
-  // over them, in one pass.
+  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), NaN off the map, and the
+  // map's extent over them, in one pass.
   const auto count = static_cast<std::int64_t>(leaves.size());
   std::vector<Eigen::Vector3f> q(leaves.size());
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
 #pragma omp parallel for schedule(static) reduction(min : umin, vmin) reduction(max : umax, vmax)
   for (std::int64_t i = 0; i < count; ++i) {
-    if (!(leaves[i].area > 0.0f)) continue;
+    if (!on_map(static_cast<std::size_t>(i))) {
+      q[i].setConstant(std::numeric_limits<float>::quiet_NaN());
+      continue;
+    }
     q[i] = map.to_map(leaves[i].centroid.cast<double>()).cast<float>();
-    if (!on_map(static_cast<std::size_t>(i))) continue;
     umin = std::min<double>(umin, q[i].x()), umax = std::max<double>(umax, q[i].x());
     vmin = std::min<double>(vmin, q[i].y()), vmax = std::max<double>(vmax, q[i].y());
   }
@@ -230,7 +236,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
 #pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
   for (std::int64_t i = 0; i < count; ++i) {
     int r = 0, c = 0;
-    const bool on = on_map(static_cast<std::size_t>(i)) && map.cell_of(q[i].x(), q[i].y(), r, c);
+    const bool on = map.cell_of(q[i].x(), q[i].y(), r, c);  // (NaN: off the map)
     pix[i] = on ? r * map.cols + c : -1;
     per_row[r] += on;
   }
