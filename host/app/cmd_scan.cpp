@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include "commands.h"
 #include "dentmark/common/huge_pages.h"
@@ -60,11 +61,16 @@ int run_detect(const DetectArgs& a) {
   ingest::ReadOptions ro;
   ro.scale_to_m = a.units == "mm" ? 1e-3 : 1.0;
   if (tty) ro.progress = [](double f) { std::fprintf(stderr, "\rreading %3.0f %%", 100 * f); };
+  // The point spacing, where measure_scale measured it on the mesh as detected (not read
+  // again in millimetres): detection needs it too.
+  std::optional<double> spacing;
   try {
     scan = ingest::open_scan(a.scan, ro);
     if (a.units == "auto") {
       const ingest::ScaleEvidence e = ingest::measure_scale(scan.mesh);
+      spacing = e.spacing;
       if (ingest::looks_like_millimetres(e)) {
+        spacing.reset();
         char note[256];
         std::snprintf(note, sizeof note,
                       "%s: read as millimetres: it spans %.4g units, its samples %.3g apart "
@@ -86,7 +92,7 @@ int run_detect(const DetectArgs& a) {
   if (tty) std::fprintf(stderr, "\rdetecting on %zu triangles...", mesh.triangle_count());
   detect::Detection det;
   try {
-    det = detect::detect(mesh, config);
+    det = spacing ? detect::detect(mesh, config, *spacing) : detect::detect(mesh, config);
   } catch (const std::invalid_argument& e) {
     if (tty) std::fprintf(stderr, "\n");
     log::error(a.scan + ": " + e.what());

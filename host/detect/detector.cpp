@@ -544,7 +544,11 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
 }  // namespace
 
 Detection detect(const ingest::MeshView& input, const DetectConfig& cfg) {
-  return detect_at_spacing(input, cfg, ingest::point_spacing(input), true, true);
+  return detect(input, cfg, ingest::point_spacing(input));
+}
+
+Detection detect(const ingest::MeshView& input, const DetectConfig& cfg, double point_spacing) {
+  return detect_at_spacing(input, cfg, point_spacing, true, true);
 }
 
 }  // namespace dentmark::detect

@@ -571,7 +571,9 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
   const std::uint64_t limit =
       signed_index ? std::min<std::uint64_t>(vertex_count, 0x80000000u) : vertex_count;
   std::uint32_t largest = 0, not_three = 0;
-#pragma omp parallel for schedule(static) reduction(max : largest) reduction(| : not_three)
+// (Chunks to whichever thread is free: on a shared machine one thread may run at half the
+// other's speed. The reductions do not depend on the order.)
+#pragma omp parallel for schedule(dynamic, 65536) reduction(max : largest) reduction(| : not_three)
   for (std::int64_t r = 0; r < nf; ++r) {
     const char* q = faces + 13 * r;
     std::uint32_t v[3];
@@ -590,7 +592,8 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
   std::int64_t bad = 0;
   const float inf = std::numeric_limits<float>::infinity();
   float x0 = inf, y0 = inf, z0 = inf, x1 = -inf, y1 = -inf, z1 = -inf;
-#pragma omp parallel for schedule(static) reduction(+ : bad) reduction(min : x0, y0, z0) reduction(max : x1, y1, z1)
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : bad) reduction(min : x0, y0, z0) \
+    reduction(max : x1, y1, z1)
   for (std::int64_t b = 0; b < blocks; ++b) {
     // (Named scalars, not arrays: so the loop vectorises as the whole-scan one did.)
     float lx = inf, ly = inf, lz = inf, hx = -inf, hy = -inf, hz = -inf;

@@ -62,5 +62,8 @@ struct Detection {
 };
 
 Detection detect(const ingest::MeshView& mesh, const DetectConfig& config);
+// The same, with the scan's point spacing already measured (ingest::point_spacing of this
+// very mesh, as measure_scale gives it): not sampled a second time.
+Detection detect(const ingest::MeshView& mesh, const DetectConfig& config, double point_spacing);
 
 }  // namespace dentmark::detect
