@@ -159,7 +159,8 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
     const Eigen::Vector3d mean = all.p / A;  // relative to x0
     const Eigen::Vector3d c = x0 + mean;
-    all.pp.triangularView<Eigen::StrictlyLower>() = all.pp.transpose();
+    for (int i = 1; i < 3; ++i)
+      for (int j = 0; j < i; ++j) all.pp(i, j) = all.pp(j, i);  // the lower triangle
     const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
     Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
