@@ -178,6 +178,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     tracking->stop();
     result.frames_tracked = tracking->frames_tracked();
     result.frames_failed = tracking->frames_failed();
+    result.frames_offered = static_cast<long>(result.sim_seconds * scenario.fps);
   }
   robot.disconnect();
   robot_sim->stop();

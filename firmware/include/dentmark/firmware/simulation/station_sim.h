@@ -48,6 +48,10 @@ struct ScenarioResult {
   Eigen::Vector3d mean_abs = Eigen::Vector3d::Zero();  // mean |e_x|, |e_y|, |e_z|, m
   Eigen::Vector3d max_abs = Eigen::Vector3d::Zero();
   long frames_tracked = 0, frames_failed = 0;
+  // The camera frames of the run (fps x its simulated time) when the tracker ran. Far
+  // more than it took (tracked or failed): the machine could not keep up with the clock,
+  // and the marks are not the station's.
+  long frames_offered = 0;
   double sim_seconds = 0.0, real_seconds = 0.0;
 };
 
