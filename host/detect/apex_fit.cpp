@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "median.h"
+#include "dentmark/common/nth_smallest.h"
 
 namespace dentmark::detect {
 

@@ -7,8 +7,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "box_mean.h"
+#include "dentmark/common/nth_smallest.h"
 #include "dilate.h"
-#include "median.h"
 #include "threads.h"
 
 namespace dentmark::detect {

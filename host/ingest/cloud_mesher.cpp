@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "delaunay_mesher.h"
+#include "dentmark/common/nth_smallest.h"
 #include "fold_mesher.h"
-#include "median.h"
 
 namespace dentmark::ingest {
 namespace {

@@ -11,7 +11,7 @@
 #include <thread>
 #include <utility>
 
-#include "median.h"
+#include "dentmark/common/nth_smallest.h"
 
 namespace dentmark::ingest {
 namespace {

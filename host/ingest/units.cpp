@@ -5,7 +5,7 @@
 #include <limits>
 #include <vector>
 
-#include "median.h"
+#include "dentmark/common/nth_smallest.h"
 
 namespace dentmark::ingest {
 namespace {
