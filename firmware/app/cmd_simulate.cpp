@@ -1,10 +1,10 @@
 // `dentmark-edge simulate`: the marking station's twin, end to end (design.md §7):
-// the paper's Table I scenarios — positions A, B, C × yaw 0°, 10°, −15° — each with the
-// rendered cameras, the tracker, the planner and the robot simulator over Modbus.
+// the paper's Table I scenarios — positions A, B, C × yaw 0°, 10°, −15° — each runs the
+// edge daemon (the `run` wiring) with simulated drivers: rendered cameras, simulated
+// GPIO and the robot simulator over Modbus TCP; the host side sends the list over TCP.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/dml_file.h"
 #include "dentmark/firmware/simulation/scan_truth.h"
@@ -35,6 +36,9 @@ struct SimulateOptions {
   std::string json_out;
   bool no_arm = false;
   bool truth_motion = false;
+  std::string board_file;
+  bool serve = false;
+  int port = 0;
 };
 
 struct Scenario {
@@ -128,6 +132,9 @@ int run_simulate(const SimulateOptions& opt) {
     scenarios = parse_scenarios(opt.scenarios);
     if (opt.truth_file.empty() != opt.defects_file.empty())
       throw std::runtime_error("--defects and --truth go together (neither: built-in door)");
+    if (opt.serve && (opt.defects_file.empty() || scenarios.size() != 1))
+      throw std::runtime_error(
+          "--serve needs --defects/--truth (the list the host sends) and one --scenario");
     if (opt.truth_file.empty()) {
       SimulatedDoor door = simulation::simulated_door(opt.seed, 6, 0.004);
       truth = std::move(door.truth);
@@ -157,6 +164,9 @@ int run_simulate(const SimulateOptions& opt) {
     sim.clock_rate = opt.rate;
     sim.arm_occludes = !opt.no_arm;
     sim.truth_motion = opt.truth_motion;
+    sim.board_file = opt.board_file;
+    sim.serve = opt.serve;
+    sim.serve_port = opt.port;
     try {
       results.push_back(simulation::run_scenario(so, sim, list, truth));
     } catch (const std::exception& e) {
@@ -191,11 +201,10 @@ int run_simulate(const SimulateOptions& opt) {
   if (!opt.json_out.empty()) {
     nlohmann::json j = {{"schema", "dentmark.station-sim/1"}, {"scenarios", nlohmann::json::array()}};
     for (const auto& r : results) j["scenarios"].push_back(to_json(r));
-    const std::string tmp = opt.json_out + ".tmp";
-    std::ofstream out(tmp);
-    out << j.dump(1) << "\n";
-    if (!out || (out.close(), std::rename(tmp.c_str(), opt.json_out.c_str()) != 0)) {
-      log::error(opt.json_out + ": cannot write");
+    try {
+      files::write_atomically(opt.json_out, j.dump(1) + "\n");
+    } catch (const files::FileError& e) {
+      log::error(e.what());
       return 1;
     }
   }
@@ -234,6 +243,11 @@ void register_simulate(CLI::App& app) {
   cmd->add_flag("--truth-motion", opt->truth_motion,
                 "Use the true panel motion instead of the tracker (diagnostics)");
   cmd->add_option("--json", opt->json_out, "Write per-mark results as JSON");
+  cmd->add_option("--board", opt->board_file, "The twin's board file (default: boards/sim/twin/board.yaml)");
+  cmd->add_flag("--serve", opt->serve,
+                "Wait for an outside host to send the list (dentmark send --wait) instead of sending it");
+  cmd->add_option("--port", opt->port, "With --serve: the link port (0: any free port, logged)")
+      ->check(CLI::Range(0, 65535));
   cmd->callback([opt] { exit_code() = run_simulate(*opt); });
 }
 

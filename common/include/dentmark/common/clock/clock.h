@@ -46,13 +46,18 @@ class SimClock final : public Clock {
   double to_real(double dt) const override;
   // Moves time forward by dt >= 0 and wakes sleepers whose deadline has come.
   void advance(double dt);
+  // Holds a scaled clock still until resume() (sleepers keep sleeping): a scene is set
+  // up, or a message exchanged, without its real seconds counting as simulated ones.
+  void pause();
+  void resume();
   double rate() const { return rate_; }
 
  private:
   double now_locked() const;
   const double rate_;
   double offset_;      // simulated time at real_start_, plus every advance()
-  double real_start_;  // real monotonic seconds when the clock was made
+  double real_start_;  // real monotonic seconds when the clock was made (or last resumed)
+  bool paused_ = false;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
 };
