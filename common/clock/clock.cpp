@@ -44,7 +44,7 @@ double SimClock::now_locked() const {
 
 void SimClock::pause() {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (paused_) return;
+  if (rate_ == 0.0 || holds_++ > 0) return;  // manual time moves only when told anyway
   offset_ = now_locked();
   paused_ = true;
 }
@@ -52,6 +52,7 @@ void SimClock::pause() {
 void SimClock::resume() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (holds_ == 0 || --holds_ > 0) return;
     if (!paused_) return;
     real_start_ = real_monotonic();
     paused_ = false;

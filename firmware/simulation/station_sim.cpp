@@ -151,7 +151,8 @@ void score(ScenarioResult& result, const Workcell& cell, const protocol::DefectL
 // The host inside the twin: the code of `dentmark send --wait` (JobSession). The scan
 // was taken at t = 0; the list goes out while time stands still, then the line runs.
 protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, clock::SimClock& clock,
-                              const Workcell& cell, const SimulationOptions& sim) {
+                              const std::function<void()>& start_time, const Workcell& cell,
+                              const SimulationOptions& sim) {
   const double slow = std::max(1.0, sim.clock_rate);
   list.scan_time = kEpoch;
   protocol::ClientOptions co;
@@ -162,7 +163,7 @@ protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, cl
   protocol::JobSession host(co);
   try {
     host.send(list);
-    clock.resume();
+    start_time();
     protocol::JobWaitOptions wo;
     wo.timeout = (cell.t_mark + 120.0) / sim.clock_rate + 60.0;
     wo.silence = 5.0 * slow;
@@ -202,6 +203,45 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
 
 }  // namespace
 
+namespace {
+constexpr std::pair<FaultKind, const char*> kFaultNames[] = {
+    {FaultKind::kEstop, "estop"},
+    {FaultKind::kRobotLink, "robot-link"},
+    {FaultKind::kRobotLinkBlip, "robot-blip"},
+    {FaultKind::kRobotFault, "robot-fault"},
+    {FaultKind::kCamera, "camera"},
+    {FaultKind::kTrackingLost, "tracking"},
+};
+}  // namespace
+
+const char* to_string(FaultKind kind) {
+  for (const auto& [k, name] : kFaultNames)
+    if (k == kind) return name;
+  return "?";
+}
+
+Fault parse_fault(const std::string& text) {
+  const auto at = text.find('@');
+  std::string names;
+  for (const auto& [k, name] : kFaultNames) names += std::string(names.empty() ? "" : ", ") + name;
+  if (at == std::string::npos)
+    throw std::invalid_argument("fault '" + text + "': expected KIND@SECONDS, KIND one of " + names);
+  Fault f;
+  bool known = false;
+  for (const auto& [k, name] : kFaultNames)
+    if (text.compare(0, at, name) == 0 && std::string(name).size() == at) f.kind = k, known = true;
+  if (!known) throw std::invalid_argument("fault '" + text + "': unknown kind, expected one of " + names);
+  std::size_t used = 0;
+  try {
+    f.after = std::stod(text.substr(at + 1), &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() - at - 1 || !(f.after >= 0.0) || f.after > 3600.0)
+    throw std::invalid_argument("fault '" + text + "': the time after marking starts must be 0..3600 s");
+  return f;
+}
+
 ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
                             const protocol::DefectList& sent_list, const ScanTruth& truth) {
   const auto real_start = std::chrono::steady_clock::now();
@@ -227,6 +267,10 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   // t = 0 and the list arrives then (a fast clock would otherwise turn milliseconds of
   // setup and loopback latency into millimetres of line travel).
   clock.pause();
+  std::atomic<bool> held{true};
+  const auto start_time = [&] {
+    if (held.exchange(false)) clock.resume();
+  };
   // The robot: the simulator serving Modbus TCP on loopback, with a fixed accuracy error.
   std::mt19937_64 rng(scenario.seed);
   std::normal_distribution<double> unit(0.0, 1.0);
@@ -248,7 +292,9 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   // The cameras: the door rendered where it truly is, with the arm in view. Each frame's
   // noise comes from its own seed, so a frame is the same whichever thread asks first.
   const Transform T_camL_base = cell.T_base_camL_true.inverse();
+  std::atomic<bool> cameras_dead{false}, panel_gone{false};
   const auto render = [&, T_camL_base](stereo::Eye eye, double t) {
+    if (cameras_dead) return cv::Mat();  // the driver's error: no image
     stereo::RenderConditions c;
     c.gain = 1.0 + sim.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
     if (eye == stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
@@ -262,7 +308,14 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     }
     const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario.fps));
     cv::RNG noise(scenario.seed * 1000003u + frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u));
-    return renderer.render(eye, cell.motion.T_camL_panel(t), c, noise);
+    Transform pose = cell.motion.T_camL_panel(t);
+    if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
+    // Rendering takes no simulated time: the cameras expose at their rate whatever this
+    // machine's speed.
+    clock.begin_work();
+    cv::Mat image = renderer.render(eye, pose, c, noise);
+    clock.end_work();
+    return image;
   };
 
   daemon::DaemonOptions d;
@@ -280,7 +333,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       const double age = req.header.send_time - l->scan_time;
       log::info("twin: the host's scan is " + std::to_string(age) + " s old; the line ran meanwhile");
       clock.advance(std::max(0.0, age));
-      clock.resume();
+      start_time();
     };
   d.hal.render = [render](double t) { return render(stereo::Eye::kLeft, t); };
   d.hal.render_right = [render](double t) { return render(stereo::Eye::kRight, t); };
@@ -301,20 +354,47 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   // The line: the panel reaches the marking place (part-present) at t_mark; an e-stop
   // when the scenario asks for one.
   std::atomic<bool> done{false};
+  std::vector<Fault> faults = sim.faults;
+  std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
   std::thread line([&] {
+    // The line runs once the list is out (time stands still before).
+    while (!done && held) std::this_thread::sleep_for(std::chrono::milliseconds(2));
     while (!done && clock.now() < cell.t_mark) clock.sleep_for(0.01);
     if (!done) gpio.drive(board.gpio.part_present.name, true);
-    if (sim.estop_after < 0.0) return;
-    const double at = cell.t_mark + sim.estop_after;
-    while (!done && clock.now() < at) clock.sleep_for(0.005);
-    if (!done) gpio.drive(board.gpio.estop.name, true);
+    for (const Fault& f : faults) {
+      const double at = cell.t_mark + f.after;
+      while (!done && clock.now() < at) clock.sleep_for(0.005);
+      if (done) return;
+      log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
+                " s");
+      switch (f.kind) {
+        case FaultKind::kEstop:
+          gpio.drive(board.gpio.estop.name, true);
+          break;
+        case FaultKind::kRobotLink:
+          robot_sim->inject_drop(1 << 30);
+          break;
+        case FaultKind::kRobotLinkBlip:
+          robot_sim->inject_drop(1);
+          break;
+        case FaultKind::kRobotFault:
+          robot_sim->inject_drive_fault();
+          break;
+        case FaultKind::kCamera:
+          cameras_dead = true;
+          break;
+        case FaultKind::kTrackingLost:
+          panel_gone = true;
+          break;
+      }
+    }
   });
 
   ScenarioResult result;
   result.options = scenario;
   result.defects_sent = static_cast<int>(list.defects.size());
   const auto finish_run = [&] {
-    clock.resume();
+    start_time();
     result.sim_seconds = clock.now();
     done = true;
     line.join();
@@ -330,7 +410,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     if (sim.serve)
       outcome = serve_host(list, edge, list_arrived, sim, cell);
     else
-      outcome = run_host(list, edge.port(), clock, cell, sim);
+      outcome = run_host(list, edge.port(), clock, start_time, cell, sim);
   } catch (const std::exception&) {
     finish_run();
     throw;

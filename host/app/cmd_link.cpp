@@ -144,11 +144,11 @@ struct SendOptions {
   std::string json_out;
 };
 
-std::optional<pr::ClientOptions> client_options(const std::string& to, const pr::HmacKey* key, double timeout,
-                                                int attempts) {
+std::optional<pr::ClientOptions> client_options(const std::string& option, const std::string& to,
+                                                const pr::HmacKey* key, double timeout, int attempts) {
   pr::ClientOptions co;
   if (!pr::parse_endpoint(to, &co.host, &co.port)) {
-    log::error("'" + to + "': expected HOST:PORT");
+    log::error(option + "'" + to + "': expected HOST:PORT");
     return std::nullopt;
   }
   co.reply_timeout = std::chrono::milliseconds(static_cast<long>(timeout * 1000));
@@ -170,7 +170,7 @@ int run_send(const SendOptions& o) {
     log::error(e.what());
     return 2;
   }
-  const auto co = client_options(o.to, key ? &*key : nullptr, o.timeout, o.attempts);
+  const auto co = client_options("--to ", o.to, key ? &*key : nullptr, o.timeout, o.attempts);
   if (!co) return 2;
   pr::JobSession session(*co);
   pr::JobOutcome outcome;
@@ -243,7 +243,7 @@ int run_status(const StatusOptions& o) {
     log::error(e.what());
     return 2;
   }
-  const auto co = client_options(o.to, key ? &*key : nullptr, o.timeout, 1);
+  const auto co = client_options("", o.to, key ? &*key : nullptr, o.timeout, 1);
   if (!co) return 2;
   pr::Status s;
   try {

@@ -43,7 +43,7 @@ gpio:
 camera: { backend: replay, left: "$tmp/seq", width: 640, height: 512 }
 modbus: { transport: tcp, host: "127.0.0.1", port: $robot_port }
 link: { port: 7878 }
-limits: { workspace_min: [-1, -1, 0], workspace_max: [1, 1, 1] }
+limits: { workspace_min: [-1, -1, 0], workspace_max: [1, 1, 1], max_speed: 0.25, max_acceleration: 1.0 }
 YAML
 
 runs=0

@@ -57,14 +57,32 @@ struct ScenarioResult {
   double sim_seconds = 0.0, real_seconds = 0.0;
 };
 
+// A fault the twin injects, `after` seconds after marking starts.
+enum class FaultKind {
+  kEstop,          // the e-stop line goes active
+  kRobotLink,      // the robot stops answering Modbus for good
+  kRobotLinkBlip,  // the robot drops one request (connection closed), then answers again
+  kRobotFault,     // the robot reports its own fault (drive) and stops
+  kCamera,         // the cameras stop delivering frames
+  kTrackingLost,   // the panel leaves the cameras' view
+};
+struct Fault {
+  FaultKind kind = FaultKind::kEstop;
+  double after = 0.0;  // s after marking starts
+};
+// "estop@2.5", "robot-link@1", "robot-blip@1", "robot-fault@3", "camera@2", "tracking@2".
+// Throws std::invalid_argument naming what is wrong.
+Fault parse_fault(const std::string& text);
+const char* to_string(FaultKind kind);
+
 struct SimulationOptions {
   double clock_rate = 1.0;   // simulated seconds per real second (the tracker must keep up)
   bool arm_occludes = true;  // render the robot's arm in the cameras' view
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
   bool truth_motion = false;
-  // Press the e-stop this many seconds after marking starts (< 0: never).
-  double estop_after = -1.0;
+  // Faults injected while the station marks (dentmark-edge simulate --fault KIND@T).
+  std::vector<Fault> faults;
   std::string board_file;  // the twin's board (empty: boards/sim/twin/board.yaml of this source tree)
   // Serve an outside host (`dentmark send --wait`) on this port (0: any, logged)
   // instead of sending the list from inside. Time stands still until the list comes;
