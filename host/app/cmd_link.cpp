@@ -179,7 +179,7 @@ int run_send(const SendOptions& o) {
     std::cout << "ack job " << sent.ack.job_id << ": " << sent.ack.count << " defects, sequence "
               << sent.ack.acked_sequence << ", digest " << hex(sent.ack.digest)
               << (sent.ack_matches ? " (matches)" : " (MISMATCH)")
-              << (sent.authenticated ? ", authenticated" : "") << "\n";
+              << (sent.authenticated ? ", authenticated" : "") << std::endl;  // before the reports' log lines
     if (!sent.ack_matches) return 1;
     if (!o.wait) return 0;
     pr::JobWaitOptions wo;
