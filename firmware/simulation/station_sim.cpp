@@ -31,6 +31,16 @@ namespace {
 // stamps (scan_time, send_time) and the daemon's reports are on one line.
 constexpr double kEpoch = 1.75e9;
 
+// A frame's own noise seed. cv::RNG's first draws from nearby seeds are nearly the
+// same, which would turn sensor noise into a fixed pattern the door slides over (and
+// the tracker sticks to): the seeds are spread by SplitMix64 first.
+std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t stream) {
+  std::uint64_t z = seed * 0x9E3779B97F4A7C15ull + stream + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return (z ^ (z >> 31)) | 1u;  // cv::RNG takes 0 as 'default seed'
+}
+
 // The panel's true motion, as a perfect tracker would report it (diagnostics).
 class TruthMotion final : public station::MotionSource {
  public:
@@ -307,7 +317,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       c.occluder = arm;
     }
     const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario.fps));
-    cv::RNG noise(scenario.seed * 1000003u + frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u));
+    cv::RNG noise(mix_seed(scenario.seed, frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u)));
     Transform pose = cell.motion.T_camL_panel(t);
     if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
     // Rendering takes no simulated time: the cameras expose at their rate whatever this
