@@ -1,6 +1,7 @@
 #include "dentmark/firmware/station/tracking_motion_source.h"
 
 #include <algorithm>
+#include <optional>
 
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/track/track_error.h"
@@ -85,46 +86,76 @@ std::optional<MotionEstimate> TrackingMotionSource::latest() {
   return latest_;
 }
 
-Transform TrackingMotionSource::predict(double t) {
-  std::lock_guard lock(mutex_);
-  if (history_.empty()) return latest_ ? latest_->M_camL : Transform::Identity();
-  const MotionEstimate& last = history_.back();
-  constexpr double kWindow = 1.5;  // s
-  if (t < last.t - kWindow && !past_.empty()) {
-    // Recorded past: interpolate between the two estimates around t.
-    if (t <= past_.front().first) return past_.front().second;
-    const auto it =
-        std::lower_bound(past_.begin(), past_.end(), t, [](const auto& p, double x) { return p.first < x; });
-    if (it == past_.end()) return past_.back().second;
-    const auto& [t1, M1] = *it;
-    const auto& [t0, M0] = *(it - 1);
-    const double a = t1 > t0 ? (t - t0) / (t1 - t0) : 0.0;
-    const Transform d = M1 * M0.inverse();
-    return make_transform_rotvec(a * rotation_vector(d), a * d.translation()) * M0;
-  }
-  // Least-squares line through the recent motions, each as the small rigid motion
-  // D_i = M_i · M_last⁻¹ (rotation vector, translation) against time: the intercept
-  // smooths the newest estimate and the slope is the velocity, both with far less
-  // noise than a two-point difference. The window is short enough (kWindow) that a
-  // line stop shows within a fraction of a second.
+namespace {
+
+// Least-squares line through motions (rotation vector and translation of the small
+// rigid motion D_i = M_i · M_ref⁻¹ against time), evaluated at t: the intercept smooths
+// the reference estimate and the slope is the velocity, both with far less noise than
+// a two-point difference. Returns nullopt with fewer than three motions.
+template <typename It, typename TimeOf, typename MotionOf>
+std::optional<Transform> line_through(It begin, It end, const Transform& M_ref, double t_ref, double t,
+                                      TimeOf time_of, MotionOf motion_of) {
   Eigen::Matrix<double, 6, 1> sy = Eigen::Matrix<double, 6, 1>::Zero(), sty = sy;
   double n = 0.0, st = 0.0, stt = 0.0;
-  const Transform last_inv = last.M_camL.inverse();
-  for (const MotionEstimate& e : history_) {
-    const double dt = e.t - last.t;
-    if (dt < -kWindow) continue;
-    const Transform d = e.M_camL * last_inv;
+  const Transform ref_inv = M_ref.inverse();
+  for (It it = begin; it != end; ++it) {
+    const double dt = time_of(*it) - t_ref;
+    const Transform d = motion_of(*it) * ref_inv;
     Eigen::Matrix<double, 6, 1> y;
     y << rotation_vector(d), d.translation();
     n += 1.0, st += dt, stt += dt * dt;
     sy += y, sty += dt * y;
   }
   const double det = n * stt - st * st;
-  if (n < 3.0 || det < 1e-9) return last.M_camL;
+  if (n < 3.0 || det < 1e-9) return std::nullopt;
   const Eigen::Matrix<double, 6, 1> slope = (n * sty - st * sy) / det;
   const Eigen::Matrix<double, 6, 1> intercept = (sy - slope * st) / n;
-  const Eigen::Matrix<double, 6, 1> at = intercept + slope * (t - last.t);
-  return make_transform_rotvec(at.head<3>(), at.tail<3>()) * last.M_camL;
+  const Eigen::Matrix<double, 6, 1> at = intercept + slope * (t - t_ref);
+  return make_transform_rotvec(at.head<3>(), at.tail<3>()) * M_ref;
+}
+
+constexpr double kWindow = 1.5;  // s of estimates a line is fitted through
+
+}  // namespace
+
+Transform TrackingMotionSource::predict(double t) {
+  std::lock_guard lock(mutex_);
+  if (history_.empty()) return latest_ ? latest_->M_camL : Transform::Identity();
+  const MotionEstimate& last = history_.back();
+  if (!past_.empty() && t < past_.front().first) {
+    // Before the first frame tracked (the scan fell between two frames, or before the
+    // pair the tracker started on): M is exactly I at that frame by definition, so only
+    // the velocity of the line through the first estimates takes it back, not the line's
+    // own offset at the frame (the tracker's noise).
+    const auto [t0, M0] = past_.front();
+    const auto end =
+        std::find_if(past_.begin(), past_.end(), [&](const auto& p) { return p.first > t0 + kWindow; });
+    const auto time_of = [](const auto& p) { return p.first; };
+    const auto motion_of = [](const auto& p) { return p.second; };
+    const auto at_t = line_through(past_.begin(), end, M0, t0, t, time_of, motion_of);
+    const auto at_t0 = line_through(past_.begin(), end, M0, t0, t0, time_of, motion_of);
+    return at_t && at_t0 ? Transform(*at_t * at_t0->inverse() * M0) : M0;
+  }
+  if (t < last.t - kWindow && !past_.empty()) {
+    // Recorded past: interpolate between the two estimates around t.
+    const auto it =
+        std::lower_bound(past_.begin(), past_.end(), t, [](const auto& p, double x) { return p.first < x; });
+    if (it == past_.end()) return past_.back().second;
+    if (it == past_.begin()) return it->second;
+    const auto& [t1, M1] = *it;
+    const auto& [t0, M0] = *(it - 1);
+    const double a = t1 > t0 ? (t - t0) / (t1 - t0) : 0.0;
+    const Transform d = M1 * M0.inverse();
+    return make_transform_rotvec(a * rotation_vector(d), a * d.translation()) * M0;
+  }
+  // Ahead, or within the recent window: the line through the last kWindow seconds. The
+  // window is short enough that a line stop shows within a fraction of a second.
+  const auto first_recent = std::find_if(history_.begin(), history_.end(),
+                                         [&](const MotionEstimate& e) { return e.t - last.t >= -kWindow; });
+  const auto line = line_through(
+      first_recent, history_.end(), last.M_camL, last.t, t, [](const MotionEstimate& e) { return e.t; },
+      [](const MotionEstimate& e) { return e.M_camL; });
+  return line ? *line : last.M_camL;
 }
 
 }  // namespace dentmark::station

@@ -21,7 +21,9 @@ void SimCamera::start() {
   // Frames fall on a grid offset + k * period shared by every camera with the same
   // period (one time base, like sensors on a common trigger clock), starting at the
   // first grid point from now.
-  first_ = static_cast<std::uint64_t>(std::max(0.0, std::ceil((clock_.now() - offset_) / period_)));
+  // A grid point less than a microsecond past counts as now (a clock started a moment
+  // ago must still take the frame at its start).
+  first_ = static_cast<std::uint64_t>(std::max(0.0, std::ceil((clock_.now() - offset_) / period_ - 1e-6)));
   next_ = first_;
   started_ = true;
 }
