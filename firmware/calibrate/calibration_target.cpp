@@ -1,5 +1,6 @@
 #include "dentmark/firmware/calibrate/calibration_target.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -50,7 +51,8 @@ double min_neighbour_distance(const std::vector<cv::Point2f>& c, int cols) {
   double d = 1e9;
   for (std::size_t i = 0; i < c.size(); ++i) {
     if ((static_cast<int>(i) + 1) % cols != 0 && i + 1 < c.size()) d = std::min(d, cv::norm(c[i + 1] - c[i]));
-    if (i + static_cast<std::size_t>(cols) < c.size()) d = std::min(d, cv::norm(c[i + static_cast<std::size_t>(cols)] - c[i]));
+    if (i + static_cast<std::size_t>(cols) < c.size())
+      d = std::min(d, cv::norm(c[i + static_cast<std::size_t>(cols)] - c[i]));
   }
   return d;
 }
@@ -87,9 +89,8 @@ Detection detect_chessboard(const TargetSpec& t, const cv::Mat& grey) {
 Detection detect_charuco(const TargetSpec& t, const cv::Mat& grey) {
   Detection out;
   const cv::Ptr<cv::aruco::Dictionary> dict = cv::aruco::getPredefinedDictionary(t.dictionary_id);
-  const cv::Ptr<cv::aruco::CharucoBoard> board =
-      cv::aruco::CharucoBoard::create(t.cols, t.rows, static_cast<float>(t.square_m),
-                                      static_cast<float>(t.marker_m), dict);
+  const cv::Ptr<cv::aruco::CharucoBoard> board = cv::aruco::CharucoBoard::create(
+      t.cols, t.rows, static_cast<float>(t.square_m), static_cast<float>(t.marker_m), dict);
   std::vector<std::vector<cv::Point2f>> marker_corners;
   std::vector<int> marker_ids;
   const cv::Ptr<cv::aruco::DetectorParameters> params = cv::aruco::DetectorParameters::create();
@@ -106,7 +107,17 @@ Detection detect_charuco(const TargetSpec& t, const cv::Mat& grey) {
     out.ids.clear();
     return out;
   }
-  cv::cornerSubPix(grey, out.corners, cv::Size(5, 5), cv::Size(-1, -1),
+  // Window half-size: inside the white gap between the corner and the nearest marker
+  // ((square − marker) / 2), whose edges would pull the saddle point. Pixels per metre
+  // from the detected markers' mean side.
+  double side_px = 0.0;
+  for (const auto& q : marker_corners)
+    for (int k = 0; k < 4; ++k)
+      side_px += cv::norm(q[static_cast<std::size_t>(k)] - q[static_cast<std::size_t>((k + 1) % 4)]);
+  side_px /= 4.0 * static_cast<double>(marker_corners.size());
+  const double gap_px = 0.5 * (t.square_m - t.marker_m) * side_px / t.marker_m;
+  const int half = std::clamp(static_cast<int>(gap_px) - 1, 2, 11);
+  cv::cornerSubPix(grey, out.corners, cv::Size(half, half), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-4));
   out.found = true;
   return out;
@@ -122,18 +133,20 @@ cv::Point3f TargetSpec::corner(int id) const {
   const int across = kind == TargetKind::kChessboard ? cols : cols - 1;
   const int offset = kind == TargetKind::kChessboard ? 0 : 1;  // ChArUco's corners start one square in
   const double s = square_m;
-  return {static_cast<float>((id % across + offset) * s), static_cast<float>((id / across + offset) * s), 0.0f};
+  return {static_cast<float>((id % across + offset) * s), static_cast<float>((id / across + offset) * s),
+          0.0f};
 }
 
 std::string TargetSpec::describe() const {
   if (kind == TargetKind::kChessboard)
-    return "chessboard:" + std::to_string(cols) + "x" + std::to_string(rows) + " square " + format_m(square_m) +
-           " m";
+    return "chessboard:" + std::to_string(cols) + "x" + std::to_string(rows) + " square " +
+           format_m(square_m) + " m";
   return "charuco:" + std::to_string(cols) + "x" + std::to_string(rows) + " square " + format_m(square_m) +
          " m marker " + format_m(marker_m) + " m " + dictionary;
 }
 
-TargetSpec parse_target(const std::string& pattern, double square_m, double marker_m, const std::string& dictionary) {
+TargetSpec parse_target(const std::string& pattern, double square_m, double marker_m,
+                        const std::string& dictionary) {
   static const std::regex re(R"(^(chessboard|charuco):([0-9]{1,3})x([0-9]{1,3})$)");
   std::smatch m;
   if (!std::regex_match(pattern, m, re))
@@ -162,14 +175,15 @@ TargetSpec parse_target(const std::string& pattern, double square_m, double mark
   for (const auto& [name, id] : kDictionaries)
     if (dictionary == name) t.dictionary_id = id;
   if (t.dictionary_id < 0)
-    throw CalibrateError("--dictionary: '" + dictionary + "' is not an OpenCV predefined dictionary (e.g. DICT_5X5_100)");
+    throw CalibrateError("--dictionary: '" + dictionary +
+                         "' is not an OpenCV predefined dictionary (e.g. DICT_5X5_100)");
   t.dictionary = dictionary;
   const int markers = (t.cols * t.rows) / 2;
   const int available = cv::aruco::getPredefinedDictionary(t.dictionary_id)->bytesList.rows;
   if (markers > available)
-    throw CalibrateError("--dictionary: " + dictionary + " has " + std::to_string(available) + " markers; a " +
-                         std::to_string(t.cols) + "x" + std::to_string(t.rows) + " board needs " +
-                         std::to_string(markers));
+    throw CalibrateError("--dictionary: " + dictionary + " has " + std::to_string(available) +
+                         " markers; a " + std::to_string(t.cols) + "x" + std::to_string(t.rows) +
+                         " board needs " + std::to_string(markers));
   return t;
 }
 

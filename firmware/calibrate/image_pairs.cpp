@@ -30,7 +30,8 @@ std::vector<ImagePair> find_image_pairs(const fs::path& dir) {
     p.number = n;
     fs::path& slot = side == "left" ? p.left : p.right;
     if (!slot.empty()) {
-      const auto [a, b] = std::minmax(slot.filename().string(), name);
+      std::string a = slot.filename().string(), b = name;
+      if (b < a) std::swap(a, b);
       throw CalibrateError(dir.string() + ": " + a + " and " + b + " both carry " + side + " image number " +
                            std::to_string(n));
     }
@@ -40,13 +41,16 @@ std::vector<ImagePair> find_image_pairs(const fs::path& dir) {
   std::vector<ImagePair> out;
   for (auto& [n, p] : pairs) {
     if (p.left.empty())
-      throw CalibrateError(p.right.string() + ": no left image numbered " + std::to_string(n) + " to pair with");
+      throw CalibrateError(p.right.string() + ": no left image numbered " + std::to_string(n) +
+                           " to pair with");
     if (p.right.empty())
-      throw CalibrateError(p.left.string() + ": no right image numbered " + std::to_string(n) + " to pair with");
+      throw CalibrateError(p.left.string() + ": no right image numbered " + std::to_string(n) +
+                           " to pair with");
     out.push_back(std::move(p));
   }
   if (out.empty())
-    throw CalibrateError(dir.string() + ": no image pairs (expected left<N>.<ext> and right<N>.<ext>, ext png, jpg, "
+    throw CalibrateError(dir.string() +
+                         ": no image pairs (expected left<N>.<ext> and right<N>.<ext>, ext png, jpg, "
                          "jpeg, bmp, tif or tiff)");
   return out;
 }

@@ -50,7 +50,8 @@ std::string stereo_calibration_yaml(const StereoCalibrationRun& run) {
      << figure(f.rms_right_px);
   fs << "epipolar_rectified_px" << figure(f.epipolar_rectified_px) << "epipolar_rectified_max_px"
      << figure(f.epipolar_rectified_max_px);
-  fs << "holdout_rms_px" << figure(f.holdout_rms_px) << "holdout_max_view_px" << figure(f.holdout_max_view_px);
+  fs << "holdout_rms_px" << figure(f.holdout_rms_px) << "holdout_max_view_px"
+     << figure(f.holdout_max_view_px);
   fs << "square_given_m" << figure(f.square_given_m) << "square_measured_m" << figure(f.square_measured_m);
   fs << "views_used" << f.views_used << "views_total" << static_cast<int>(run.views.size());
   fs << "views"

@@ -107,8 +107,8 @@ Rectification rectify(const track::StereoCalibration& c) {
   return out;
 }
 
-std::vector<cv::Point2d> rectified_points(const std::vector<cv::Point2f>& px, const cv::Matx33d& k, const cv::Mat& d,
-                                          const cv::Mat& r, const cv::Mat& p) {
+std::vector<cv::Point2d> rectified_points(const std::vector<cv::Point2f>& px, const cv::Matx33d& k,
+                                          const cv::Mat& d, const cv::Mat& r, const cv::Mat& p) {
   std::vector<cv::Point2d> in(px.begin(), px.end()), out;
   cv::undistortPoints(in, out, cv::Mat(k), d, r, p,
                       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-12));
@@ -116,8 +116,8 @@ std::vector<cv::Point2d> rectified_points(const std::vector<cv::Point2f>& px, co
 }
 
 // Stages 5 and 6 over the kept views.
-void rectified_figures(const std::vector<StereoView>& views, const std::vector<std::size_t>& use, double square_m,
-                       StereoFit& fit) {
+void rectified_figures(const std::vector<StereoView>& views, const std::vector<std::size_t>& use,
+                       double square_m, StereoFit& fit) {
   const track::StereoCalibration& c = fit.calibration;
   const Rectification rect = rectify(c);
   double sum_dy = 0.0, max_dy = 0.0, sum_d = 0.0;
@@ -140,7 +140,8 @@ void rectified_figures(const std::vector<StereoView>& views, const std::vector<s
     std::vector<cv::Point3d> p(l.size());
     for (int j = 0; j < h.cols; ++j) {
       const double w = h.at<double>(3, j);
-      p[static_cast<std::size_t>(j)] = {h.at<double>(0, j) / w, h.at<double>(1, j) / w, h.at<double>(2, j) / w};
+      p[static_cast<std::size_t>(j)] = {h.at<double>(0, j) / w, h.at<double>(1, j) / w,
+                                        h.at<double>(2, j) / w};
     }
     // Neighbouring corners: one square apart on the board.
     for (std::size_t a = 0; a < p.size(); ++a)
@@ -253,10 +254,11 @@ StereoFit fit_stereo(const std::vector<StereoView>& views, cv::Size size, double
     if (!(*worst_it > limit)) break;
     const long worst = worst_it - e.begin();
     char why[200];
-    std::snprintf(why, sizeof why,
-                  "outlier: view RMS %.3f px over the limit %.3f px (max(median + %.1f x 1.4826 x MAD, %.1f x "
-                  "median) of %zu views)",
-                  *worst_it, limit, o.outlier_mad_factor, o.outlier_median_ratio, e.size());
+    std::snprintf(
+        why, sizeof why,
+        "outlier: view RMS %.3f px over the limit %.3f px (max(median + %.1f x 1.4826 x MAD, %.1f x "
+        "median) of %zu views)",
+        *worst_it, limit, o.outlier_mad_factor, o.outlier_median_ratio, e.size());
     fit.views[use[static_cast<std::size_t>(worst)]].rejected_because = why;
     use.erase(use.begin() + worst);
     pair = fit_pair(views, use, size, o.model);

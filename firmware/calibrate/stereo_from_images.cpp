@@ -1,7 +1,5 @@
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 
-#include <chrono>
-#include <ctime>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
@@ -11,15 +9,6 @@
 
 namespace dentmark::calibrate {
 namespace {
-
-std::string utc_now_iso8601() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char b[32];
-  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return b;
-}
 
 cv::Mat read_grey(const std::filesystem::path& p) {
   cv::Mat img;
@@ -106,9 +95,10 @@ StereoCalibrationRun calibrate_stereo_images(const std::filesystem::path& dir, c
   }
   const int need = std::max(options.min_views, 3);
   if (static_cast<int>(views.size()) < need)
-    throw CalibrateError(dir.string() + ": the target (" + target.describe() + ") was found in both images of " +
-                         std::to_string(views.size()) + " of " + std::to_string(n) + " pairs; at least " +
-                         std::to_string(need) + " are needed (check --pattern and --square)");
+    throw CalibrateError(dir.string() + ": the target (" + target.describe() +
+                         ") was found in both images of " + std::to_string(views.size()) + " of " +
+                         std::to_string(n) + " pairs; at least " + std::to_string(need) +
+                         " are needed (check --pattern and --square)");
   run.fit = fit_stereo(views, size, target.square_m, options);
   for (std::size_t k = 0; k < views.size(); ++k) run.views[view_pair[k]] = run.fit.views[k];
   return run;

@@ -72,11 +72,12 @@ void check_residual(const cv::FileStorage& fs, const std::string& file, const ch
   if (!(node.isReal() || node.isInt())) throw TrackError(file + ": field " + name + " is not a number");
   const double v = node.real();
   if (may_be_unset && v == -1.0) return;
-  if (!std::isfinite(v) || v < 0.0) throw TrackError(file + ": field " + name + " is not a residual (" +
-                                                     std::to_string(v) + ")");
+  if (!std::isfinite(v) || v < 0.0)
+    throw TrackError(file + ": field " + name + " is not a residual (" + std::to_string(v) + ")");
   if (v > limit) {
     char b[160];
-    std::snprintf(b, sizeof b, ": field %s is %.3f px, over the limit of %.3f px: recalibrate", name, v, limit);
+    std::snprintf(b, sizeof b, ": field %s is %.3f px, over the limit of %.3f px: recalibrate", name, v,
+                  limit);
     throw TrackError(file + b);
   }
 }
@@ -90,7 +91,8 @@ void check_residuals(const cv::FileStorage& fs, const std::string& file, const S
 
 }  // namespace
 
-StereoCalibration load_stereo_calibration(const std::filesystem::path& path, const StereoResidualLimits& limits) {
+StereoCalibration load_stereo_calibration(const std::filesystem::path& path,
+                                          const StereoResidualLimits& limits) {
   const std::string file = path.string();
   cv::FileStorage fs;
   try {

@@ -20,12 +20,12 @@ enum class TargetKind { kChessboard, kCharuco };
 
 struct TargetSpec {
   TargetKind kind = TargetKind::kChessboard;
-  int cols = 0;              // chessboard: inner corners across; charuco: squares across
-  int rows = 0;              // chessboard: inner corners down;   charuco: squares down
-  double square_m = 0.0;     // side of one square, metres
-  double marker_m = 0.0;     // charuco: side of one marker, metres
-  std::string dictionary;    // charuco: OpenCV predefined dictionary name, e.g. DICT_5X5_100
-  int dictionary_id = -1;    // its cv::aruco::PREDEFINED_DICTIONARY_NAME value
+  int cols = 0;            // chessboard: inner corners across; charuco: squares across
+  int rows = 0;            // chessboard: inner corners down;   charuco: squares down
+  double square_m = 0.0;   // side of one square, metres
+  double marker_m = 0.0;   // charuco: side of one marker, metres
+  std::string dictionary;  // charuco: OpenCV predefined dictionary name, e.g. DICT_5X5_100
+  int dictionary_id = -1;  // its cv::aruco::PREDEFINED_DICTIONARY_NAME value
 
   // Number of corners a full view of the board yields.
   int corner_count() const;

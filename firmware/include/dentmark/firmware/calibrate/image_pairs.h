@@ -15,7 +15,7 @@
 namespace dentmark::calibrate {
 
 struct ImagePair {
-  long number = 0;  // N
+  long number = 0;   // N
   std::string name;  // N as written in the left file's name ("01")
   std::filesystem::path left, right;
 };

@@ -67,15 +67,15 @@ struct ViewFigures {
 struct StereoFit {
   track::StereoCalibration calibration;  // K1 D1 K2 D2, T_camR_camL (R T), image size
   int views_used = 0;
-  double rms_px = kNaN;                  // cv::stereoCalibrate's RMS over the kept views
+  double rms_px = kNaN;  // cv::stereoCalibrate's RMS over the kept views
   double rms_left_px = kNaN, rms_right_px = kNaN;
-  double epipolar_rectified_px = kNaN;   // stage 5, mean |y_L − y_R|
+  double epipolar_rectified_px = kNaN;  // stage 5, mean |y_L − y_R|
   double epipolar_rectified_max_px = kNaN;
-  double holdout_rms_px = kNaN;          // stage 4, RMS over all held-out views' corners
-  double holdout_max_view_px = kNaN;     // the worst held-out view
+  double holdout_rms_px = kNaN;       // stage 4, RMS over all held-out views' corners
+  double holdout_max_view_px = kNaN;  // the worst held-out view
   double square_given_m = kNaN;
-  double square_measured_m = kNaN;       // stage 6
-  std::vector<ViewFigures> views;        // every view passed in, in order
+  double square_measured_m = kNaN;  // stage 6
+  std::vector<ViewFigures> views;   // every view passed in, in order
 };
 
 // Calibrates from views whose corners were found in both images. 'square_m' is the

@@ -45,7 +45,8 @@ struct StereoResidualLimits {
 // must also carry rms_px, epipolar_rectified_px and holdout_rms_px within 'limits'
 // (holdout_rms_px may be −1: not computed); in other files these fields are checked
 // when present. Throws TrackError naming the file and field.
-StereoCalibration load_stereo_calibration(const std::filesystem::path& path, const StereoResidualLimits& limits = {});
+StereoCalibration load_stereo_calibration(const std::filesystem::path& path,
+                                          const StereoResidualLimits& limits = {});
 
 struct Triangulation {
   Eigen::Vector3d p_camL = Eigen::Vector3d::Zero();
