@@ -1,5 +1,6 @@
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 
+#include <algorithm>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
@@ -27,8 +28,17 @@ StereoView stereo_view(const TargetSpec& target, const std::string& name, const 
                        const Detection& right) {
   StereoView v;
   v.name = name;
+  std::vector<cv::Point2f> right_corners = right.corners;
+  if (target.kind == TargetKind::kChessboard && left.found && right.found) {
+    // findChessboardCorners may start a board at either end (a 180° turn of the grid
+    // maps the inner corners onto themselves). Cameras side by side see the board the
+    // same way up, so the first-to-last corner direction must agree in both images.
+    const cv::Point2f dl = left.corners.front() - left.corners.back();
+    const cv::Point2f dr = right_corners.front() - right_corners.back();
+    if (dl.dot(dr) < 0) std::reverse(right_corners.begin(), right_corners.end());
+  }
   std::map<int, cv::Point2f> in_right;
-  for (std::size_t i = 0; i < right.ids.size(); ++i) in_right[right.ids[i]] = right.corners[i];
+  for (std::size_t i = 0; i < right.ids.size(); ++i) in_right[right.ids[i]] = right_corners[i];
   for (std::size_t i = 0; i < left.ids.size(); ++i) {
     const auto it = in_right.find(left.ids[i]);
     if (it == in_right.end()) continue;

@@ -2,6 +2,7 @@
 // stereo_calib sample procedure run in the same process on the same files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
@@ -123,6 +124,22 @@ TEST_F(RealPairs, ViewThatSpoilsTheFitIsRejected) {
   EXPECT_NEAR(run.fit.calibration.T_camR_camL.translation().norm(),
               clean_fit.calibration.T_camR_camL.translation().norm(), 0.001);
   EXPECT_NEAR(run.fit.square_measured_m / 0.025, 1.0, 0.01);
+}
+
+// A chessboard found from the other end in one image is put back in the other's order.
+TEST_F(RealPairs, ChessboardOrderAgreesBetweenCameras) {
+  const TargetSpec t = board_9x6();
+  const cv::Mat l = cv::imread((dir_.path() / "left04.jpg").string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat r = cv::imread((dir_.path() / "right04.jpg").string(), cv::IMREAD_GRAYSCALE);
+  const Detection dl = detect_target(t, l), dr = detect_target(t, r);
+  ASSERT_TRUE(dl.found && dr.found);
+  Detection flipped = dr;
+  std::reverse(flipped.corners.begin(), flipped.corners.end());
+  const StereoView a = stereo_view(t, "04", dl, dr), b = stereo_view(t, "04", dl, flipped);
+  ASSERT_EQ(a.right.size(), 54u);
+  for (std::size_t i = 0; i < a.right.size(); ++i) EXPECT_EQ(a.right[i], b.right[i]) << i;
+  // The same physical corner first in both: nearer to each other than to the far end.
+  EXPECT_LT(cv::norm(a.left[0] - a.right[0]), cv::norm(a.left[0] - a.right[53]));
 }
 
 // A pair whose right image shows no board is listed with the reason, not fitted.

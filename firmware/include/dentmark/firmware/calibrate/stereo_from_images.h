@@ -30,7 +30,9 @@ struct StereoCalibrationRun {
 StereoCalibrationRun calibrate_stereo_images(const std::filesystem::path& dir, const TargetSpec& target,
                                              const StereoFitOptions& options = {});
 
-// The StereoViews of one pair: corners found in both images, matched by id.
+// The StereoView of one pair: corners found in both images, matched by id. A
+// chessboard found from opposite ends in the two images (first-to-last corner
+// directions more than 90° apart) has its right corners reversed.
 StereoView stereo_view(const TargetSpec& target, const std::string& name, const Detection& left,
                        const Detection& right);
 
