@@ -134,13 +134,13 @@ std::string robot_calibration_yaml(const RobotCalibrationRun& run) {
   cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
   fs << "dentmark_robot_calibration" << 1;
   fs << "T_base_camL" << matrix_of(f.T_base_camL);
-  fs << "rms_m" << f.rms_m << "holdout_rms_m" << f.holdout_rms_m << "holdout_max_pose_m"
+  fs << "rms" << f.rms_m << "holdout_rms_m" << f.holdout_rms_m << "holdout_max_pose_m"
      << f.holdout_max_pose_m;
   fs << "handeye_translation_diff_m" << f.handeye_translation_diff_m << "handeye_rotation_diff_rad"
      << f.handeye_rotation_diff_rad;
   fs << "T_base_camL_handeye" << matrix_of(f.T_base_camL_handeye);
   fs << "poses" << run.poses << "points_per_pose" << run.points_per_pose;
-  fs << "created_utc" << run.created_utc << "inputs_sha256" << run.inputs_sha256 << "tool_version"
+  fs << "date" << run.created_utc << "inputs_sha256" << run.inputs_sha256 << "tool_version"
      << run.tool_version;
   return fs.releaseAndGetString();
 }
@@ -149,7 +149,7 @@ std::string robot_calibration_json(const RobotCalibrationRun& run) {
   const RobotFit& f = run.fit;
   nlohmann::json j;
   j["T_base_camL"] = json_of(f.T_base_camL);
-  j["rms_m"] = f.rms_m;
+  j["rms"] = f.rms_m;
   j["holdout_rms_m"] = f.holdout_rms_m;
   j["holdout_max_pose_m"] = f.holdout_max_pose_m;
   j["holdout_pose_rms_m"] = f.holdout_pose_rms_m;
@@ -158,7 +158,7 @@ std::string robot_calibration_json(const RobotCalibrationRun& run) {
   j["T_base_camL_handeye"] = json_of(f.T_base_camL_handeye);
   j["poses"] = run.poses;
   j["points_per_pose"] = run.points_per_pose;
-  j["created_utc"] = run.created_utc;
+  j["date"] = run.created_utc;
   j["inputs_sha256"] = run.inputs_sha256;
   j["tool_version"] = run.tool_version;
   return j.dump(2);
@@ -176,7 +176,7 @@ Transform load_robot_calibration(const std::filesystem::path& path, const RobotR
   const std::string file = path.string();
   cv::FileStorage fs = open_yaml(path);
   const Transform t = read_transform(fs["T_base_camL"], file, "T_base_camL");
-  check_residual(fs, file, "rms_m", limits.max_rms_m);
+  check_residual(fs, file, "rms", limits.max_rms_m);
   check_residual(fs, file, "holdout_rms_m", limits.max_holdout_m);
   check_residual(fs, file, "handeye_translation_diff_m", limits.max_handeye_translation_m);
   return t;

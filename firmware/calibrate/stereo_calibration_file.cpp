@@ -64,8 +64,8 @@ std::string stereo_calibration_yaml(const StereoCalibrationRun& run) {
     fs << "}";
   }
   fs << "]";
-  fs << "target" << run.target.describe() << "created_utc" << run.created_utc << "inputs_sha256"
-     << run.inputs_sha256 << "tool_version" << run.tool_version;
+  fs << "target" << run.target.describe() << "date" << run.created_utc << "inputs_sha256" << run.inputs_sha256
+     << "tool_version" << run.tool_version;
   return fs.releaseAndGetString();
 }
 
@@ -104,7 +104,7 @@ std::string stereo_calibration_json(const StereoCalibrationRun& run) {
     j["views"].push_back(jv);
   }
   j["target"] = run.target.describe();
-  j["created_utc"] = run.created_utc;
+  j["date"] = run.created_utc;
   j["inputs_sha256"] = run.inputs_sha256;
   j["tool_version"] = run.tool_version;
   return j.dump(2);

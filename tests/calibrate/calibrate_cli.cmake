@@ -68,7 +68,7 @@ if(expect_code EQUAL 0)
   # The file the tracker reads, with its figures and provenance; the JSON says the same.
   file(READ ${out} yaml)
   foreach(field image_width image_height K1 D1 K2 D2 R T rms_px epipolar_rectified_px holdout_rms_px views
-                created_utc inputs_sha256 tool_version)
+                date inputs_sha256 tool_version)
     if(NOT yaml MATCHES "\n${field}:")
       message(FATAL_ERROR "${out} has no field ${field}:\n${yaml}")
     endif()

@@ -69,7 +69,7 @@ class CalibrationFile : public ::testing::Test {
         if (value) value(out);
         continue;
       }
-      if (key == "views" || key == "target" || key == "created_utc" || key == "inputs_sha256" ||
+      if (key == "views" || key == "target" || key == "date" || key == "inputs_sha256" ||
           key == "tool_version")
         continue;  // not read by the loader
       if (n.isMap()) {
@@ -103,7 +103,7 @@ TEST_F(CalibrationFile, WrittenFileLoadsWithTheSameValues) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_.path()), fs::directory_iterator()), 1);
   // Provenance and per-view figures are in the file.
   cv::FileStorage fs(p.string(), cv::FileStorage::READ);
-  EXPECT_EQ(static_cast<std::string>(fs["created_utc"]), "2026-12-05T19:30:00Z");
+  EXPECT_EQ(static_cast<std::string>(fs["date"]), "2026-12-05T19:30:00Z");
   EXPECT_EQ(static_cast<std::string>(fs["inputs_sha256"]), std::string(64, 'a'));
   EXPECT_EQ(static_cast<std::string>(fs["tool_version"]), "0.1.0");
   EXPECT_EQ(static_cast<std::string>(fs["views"][1]["rejected_because"]),

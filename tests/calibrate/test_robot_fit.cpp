@@ -11,6 +11,7 @@
 
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/robot_calibration_file.h"
+#include "dentmark/firmware/station/station_calibration.h"
 #include "temp_dir.h"
 
 namespace dentmark::calibrate {
@@ -159,6 +160,8 @@ TEST_F(RobotFiles, SamplesRoundTripAndResultLoads) {
   const auto out = dir_.path() / "robot.yaml";
   write_robot_calibration(out.string(), run);
   EXPECT_TRUE(load_robot_calibration(out).isApprox(run.fit.T_base_camL, 1e-12));
+  // The daemon reads it too (its calibration folder's robot.yaml).
+  EXPECT_TRUE(station::load_transform(out, "T_base_camL").isApprox(run.fit.T_base_camL, 1e-12));
   // Over the hold-out limit: refused, naming the field.
   run.fit.holdout_rms_m = 1.5e-3;
   write_robot_calibration(out.string(), run);

@@ -4,9 +4,10 @@
 // Samples (input of `calibrate robot --from-file`), OpenCV FileStorage YAML:
 //   target_points_tool: N×3 matrix, metres (N ≥ 3, not collinear)
 //   samples: sequence of { T_base_tool: 4×4 matrix, points_camL: N×3 matrix }
-// Result (robot.yaml): dentmark_robot_calibration (version), T_base_camL (4×4), rms_m,
+// Result (robot.yaml, read by the daemon: docs/station.md): dentmark_robot_calibration
+// (version), T_base_camL (4×4), rms (the fit's point RMS, m),
 // holdout_rms_m, holdout_max_pose_m, handeye_translation_diff_m,
-// handeye_rotation_diff_rad, poses, points_per_pose, created_utc, inputs_sha256,
+// handeye_rotation_diff_rad, poses, points_per_pose, date (UTC ISO 8601), inputs_sha256,
 // tool_version.
 
 #include <filesystem>
