@@ -2,7 +2,7 @@
 # for the host and into the arm64 sysroot).
 find_package(Threads REQUIRED)
 find_package(Eigen3 3.4 REQUIRED NO_MODULE)
-find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs video calib3d features2d)
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs video calib3d features2d aruco)
 find_package(yaml-cpp REQUIRED)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)

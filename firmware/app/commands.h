@@ -17,5 +17,7 @@ void register_track(CLI::App& app);
 void register_teach(CLI::App& app);
 // `dentmark-edge simulate ...`: the station's twin end to end (Table I scenarios).
 void register_simulate(CLI::App& app);
+// `dentmark-edge calibrate stereo|robot ...`: the station's calibration files.
+void register_calibrate(CLI::App& app);
 
 }  // namespace dentmark::edge

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   dentmark::edge::register_track(app);
   dentmark::edge::register_teach(app);
   dentmark::edge::register_simulate(app);
+  dentmark::edge::register_calibrate(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

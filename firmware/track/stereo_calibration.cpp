@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstdio>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -59,9 +60,39 @@ CameraModel read_camera(const cv::FileStorage& fs, const std::string& file, cons
   return cam;
 }
 
+// A recorded residual (pixels): absent is allowed unless 'required'; −1 means "not
+// computed" where 'may_be_unset'.
+void check_residual(const cv::FileStorage& fs, const std::string& file, const char* name, double limit,
+                    bool required, bool may_be_unset) {
+  const cv::FileNode node = fs[name];
+  if (node.empty() || node.isNone()) {
+    if (required) throw TrackError(file + ": field " + name + " is missing");
+    return;
+  }
+  if (!(node.isReal() || node.isInt())) throw TrackError(file + ": field " + name + " is not a number");
+  const double v = node.real();
+  if (may_be_unset && v == -1.0) return;
+  if (!std::isfinite(v) || v < 0.0)
+    throw TrackError(file + ": field " + name + " is not a residual (" + std::to_string(v) + ")");
+  if (v > limit) {
+    char b[160];
+    std::snprintf(b, sizeof b, ": field %s is %.3f px, over the limit of %.3f px: recalibrate", name, v,
+                  limit);
+    throw TrackError(file + b);
+  }
+}
+
+void check_residuals(const cv::FileStorage& fs, const std::string& file, const StereoResidualLimits& limits) {
+  const bool ours = !fs["dentmark_stereo_calibration"].empty();
+  check_residual(fs, file, "rms_px", limits.max_rms_px, ours, false);
+  check_residual(fs, file, "epipolar_rectified_px", limits.max_epipolar_px, ours, false);
+  check_residual(fs, file, "holdout_rms_px", limits.max_holdout_px, ours, true);
+}
+
 }  // namespace
 
-StereoCalibration load_stereo_calibration(const std::filesystem::path& path) {
+StereoCalibration load_stereo_calibration(const std::filesystem::path& path,
+                                          const StereoResidualLimits& limits) {
   const std::string file = path.string();
   cv::FileStorage fs;
   try {
@@ -82,9 +113,11 @@ StereoCalibration load_stereo_calibration(const std::filesystem::path& path) {
   if (r.rows != 3 || r.cols != 3) throw TrackError(file + ": field R must be 3x3 or a rotation vector");
   Eigen::Matrix3d re;
   cv::cv2eigen(r, re);
-  if ((re.transpose() * re - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 ||
-      re.determinant() < 0.0)
-    throw TrackError(file + ": field R is not a rotation");
+  if ((re.transpose() * re - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3)
+    throw TrackError(file + ": field R is not a rotation (not orthonormal: |R^T R - I| > 1e-3)");
+  if (std::abs(re.determinant() - 1.0) > 1e-2)
+    throw TrackError(file + ": field R is not a rotation (determinant " + std::to_string(re.determinant()) +
+                     ", not +1)");
   // Re-orthonormalise: files carry rounded values.
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(re, Eigen::ComputeFullU | Eigen::ComputeFullV);
   re = svd.matrixU() * svd.matrixV().transpose();
@@ -95,6 +128,7 @@ StereoCalibration load_stereo_calibration(const std::filesystem::path& path) {
   c.T_camR_camL = Transform::Identity();
   c.T_camR_camL.linear() = re;
   c.T_camR_camL.translation() = te;
+  check_residuals(fs, file, limits);
   return c;
 }
 

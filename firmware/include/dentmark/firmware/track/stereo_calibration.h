@@ -31,9 +31,22 @@ struct StereoCalibration {
   std::vector<cv::Point2d> normalize(Cam c, const std::vector<cv::Point2f>& pixels) const;
 };
 
+// Limits on the residuals a calibration file records (docs/calibration.md): a file
+// over any of them is refused.
+struct StereoResidualLimits {
+  double max_rms_px = 1.0;       // rms_px: stereo RMS reprojection error
+  double max_epipolar_px = 1.0;  // epipolar_rectified_px: mean |y_L − y_R| after rectification
+  double max_holdout_px = 2.0;   // holdout_rms_px: error on views left out of the fit
+};
+
 // Reads stereo.yaml (image_width, image_height, K1, D1, K2, D2, R, T). R may be a 3x3
-// matrix or a rotation vector. Throws TrackError naming the file and field.
-StereoCalibration load_stereo_calibration(const std::filesystem::path& path);
+// matrix or a rotation vector; it must be orthonormal within 1e-3 with determinant +1.
+// A file written by `dentmark-edge calibrate stereo` (field dentmark_stereo_calibration)
+// must also carry rms_px, epipolar_rectified_px and holdout_rms_px within 'limits'
+// (holdout_rms_px may be −1: not computed); in other files these fields are checked
+// when present. Throws TrackError naming the file and field.
+StereoCalibration load_stereo_calibration(const std::filesystem::path& path,
+                                          const StereoResidualLimits& limits = {});
 
 struct Triangulation {
   Eigen::Vector3d p_camL = Eigen::Vector3d::Zero();
