@@ -252,25 +252,143 @@ Fault parse_fault(const std::string& text) {
   return f;
 }
 
-ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
-                            const protocol::DefectList& sent_list, const ScanTruth& truth) {
-  const auto real_start = std::chrono::steady_clock::now();
-  const Workcell cell = make_workcell(scenario, truth.T_sls_panel, truth.panel_width, truth.panel_height);
-  const stereo::StereoRenderer renderer(cell.rig, cell.door);
-  protocol::DefectList list = sent_list;
-  if (list.panel_id.empty()) list.panel_id = "twin-door";
-  ScratchDir scratch;
-  commission(cell, renderer, list.panel_id, scratch.path / "calibration");
+namespace {
 
+// The twin's board: the simulation board file with the scenario's cameras and the
+// workcell's limits. Socket timeouts are real-time budgets of the link; at a fast
+// clock they are scaled to stay that long.
+board::BoardConfig twin_board(const SimulationOptions& sim, const ScenarioOptions& scenario,
+                              const Workcell& cell) {
   board::BoardConfig board = board::load_board_config(twin_board_file(sim));
   board.camera.width = scenario.width;
   board.camera.height = scenario.height;
   board.limits.workspace_min = cell.workspace_min;
   board.limits.workspace_max = cell.workspace_max;
-  // Socket timeouts and the heartbeat watchdog are real-time budgets of the link; at a
-  // fast clock they are scaled to stay that long.
+  board.modbus.timeout *= std::max(1.0, sim.clock_rate);
+  return board;
+}
+
+// The robot: the workcell's limits and home, a fixed absolute accuracy error drawn from
+// the scenario's seed, and its repeatability.
+sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const SimulationOptions& sim,
+                                 const Workcell& cell, const board::BoardConfig& board) {
+  std::mt19937_64 rng(scenario.seed);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  sim::RobotSimConfig c;
+  c.workspace_min = cell.workspace_min;
+  c.workspace_max = cell.workspace_max;
+  c.home = cell.robot_home;
+  c.max_speed = board.limits.max_speed;
+  c.max_acceleration = board.limits.max_acceleration;
+  c.accuracy_error = make_transform_rotvec(
+      Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+  c.repeatability = scenario.robot_repeatability;
+  c.seed = static_cast<std::uint32_t>(scenario.seed);
+  c.heartbeat_timeout = 0.5 * std::max(1.0, sim.clock_rate);
+  return c;
+}
+
+// The cameras' view: the door rendered where it truly is, with the robot's arm in view
+// and lighting drift; the camera and tracking faults act here.
+class DoorCameras {
+ public:
+  DoorCameras(const Workcell& cell, const ScenarioOptions& scenario, const SimulationOptions& sim,
+              const sim::RobotSimulator& robot, clock::Clock& clock)
+      : cell_(cell),
+        renderer_(cell.rig, cell.door),
+        scenario_(scenario),
+        sim_(sim),
+        robot_(robot),
+        clock_(clock) {}
+
+  cv::Mat render(stereo::Eye eye, double t) const {
+    if (dead) return cv::Mat();  // the driver's error: no image
+    stereo::RenderConditions c;
+    c.gain = 1.0 + sim_.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
+    if (eye == stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
+    if (sim_.arm_occludes) {
+      const Transform T_camL_base = cell_.T_base_camL_true.inverse();
+      const Transform tip = robot_.true_pose();
+      stereo::Occluder arm;
+      arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
+      arm.b = T_camL_base * Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line (floor-mounted robot)
+      arm.radius = 0.04;
+      c.occluder = arm;
+    }
+    // Each frame's noise from its own seed: a frame is the same whichever thread asks first.
+    const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario_.fps));
+    cv::RNG noise(mix_seed(scenario_.seed, frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u)));
+    Transform pose = cell_.motion.T_camL_panel(t);
+    if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
+    // Rendering takes no simulated time: the cameras expose at their rate whatever this
+    // machine's speed.
+    clock_.begin_work();
+    cv::Mat image = renderer_.render(eye, pose, c, noise);
+    clock_.end_work();
+    return image;
+  }
+  const stereo::StereoRenderer& renderer() const { return renderer_; }
+
+  std::atomic<bool> dead{false}, panel_gone{false};
+
+ private:
+  const Workcell& cell_;
+  const stereo::StereoRenderer renderer_;
+  const ScenarioOptions& scenario_;
+  const SimulationOptions& sim_;
+  const sim::RobotSimulator& robot_;
+  clock::Clock& clock_;
+};
+
+// The line around the station: once time runs, the panel reaches the marking place
+// (part-present) at t_mark, and the scenario's faults come after.
+void run_line(const SimulationOptions& sim, const Workcell& cell, const board::BoardConfig& board,
+              clock::SimClock& clock, const std::atomic<bool>& held, const std::atomic<bool>& done,
+              hal::SimGpio& gpio, sim::RobotSimulator& robot, DoorCameras& cameras) {
+  std::vector<Fault> faults = sim.faults;
+  std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
+  while (!done && held) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  while (!done && clock.now() < cell.t_mark) clock.sleep_for(0.01);
+  if (!done) gpio.drive(board.gpio.part_present.name, true);
+  for (const Fault& f : faults) {
+    const double at = cell.t_mark + f.after;
+    while (!done && clock.now() < at) clock.sleep_for(0.005);
+    if (done) return;
+    log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
+              " s");
+    switch (f.kind) {
+      case FaultKind::kEstop:
+        gpio.drive(board.gpio.estop.name, true);
+        break;
+      case FaultKind::kRobotLink:
+        robot.inject_drop(1 << 30);
+        break;
+      case FaultKind::kRobotLinkBlip:
+        robot.inject_drop(1);
+        break;
+      case FaultKind::kRobotFault:
+        robot.inject_drive_fault();
+        break;
+      case FaultKind::kCamera:
+        cameras.dead = true;
+        break;
+      case FaultKind::kTrackingLost:
+        cameras.panel_gone = true;
+        break;
+    }
+  }
+}
+
+}  // namespace
+
+ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
+                            const protocol::DefectList& sent_list, const ScanTruth& truth) {
+  const auto real_start = std::chrono::steady_clock::now();
+  const Workcell cell = make_workcell(scenario, truth.T_sls_panel, truth.panel_width, truth.panel_height);
+  protocol::DefectList list = sent_list;
+  if (list.panel_id.empty()) list.panel_id = "twin-door";
+  board::BoardConfig board = twin_board(sim, scenario, cell);
   const double slow = std::max(1.0, sim.clock_rate);
-  board.modbus.timeout *= slow;
 
   clock::SimClock clock(sim.clock_rate);
   // Time stands still while the station is set up and the list goes out: the scan is at
@@ -281,52 +399,12 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   const auto start_time = [&] {
     if (held.exchange(false)) clock.resume();
   };
-  // The robot: the simulator serving Modbus TCP on loopback, with a fixed accuracy error.
-  std::mt19937_64 rng(scenario.seed);
-  std::normal_distribution<double> unit(0.0, 1.0);
-  sim::RobotSimConfig robot_cfg;
-  robot_cfg.workspace_min = cell.workspace_min;
-  robot_cfg.workspace_max = cell.workspace_max;
-  robot_cfg.home = cell.robot_home;
-  robot_cfg.max_speed = board.limits.max_speed;
-  robot_cfg.max_acceleration = board.limits.max_acceleration;
-  robot_cfg.accuracy_error = make_transform_rotvec(
-      Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
-  robot_cfg.repeatability = scenario.robot_repeatability;
-  robot_cfg.seed = static_cast<std::uint32_t>(scenario.seed);
-  robot_cfg.heartbeat_timeout = 0.5 * slow;
-  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_cfg, clock);
+  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_config(scenario, sim, cell, board), clock);
   board.modbus.host = "127.0.0.1";
   board.modbus.port = robot_sim->port();
-
-  // The cameras: the door rendered where it truly is, with the arm in view. Each frame's
-  // noise comes from its own seed, so a frame is the same whichever thread asks first.
-  const Transform T_camL_base = cell.T_base_camL_true.inverse();
-  std::atomic<bool> cameras_dead{false}, panel_gone{false};
-  const auto render = [&, T_camL_base](stereo::Eye eye, double t) {
-    if (cameras_dead) return cv::Mat();  // the driver's error: no image
-    stereo::RenderConditions c;
-    c.gain = 1.0 + sim.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
-    if (eye == stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
-    if (sim.arm_occludes) {
-      const Transform tip = robot_sim->true_pose();
-      stereo::Occluder arm;
-      arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
-      arm.b = T_camL_base * Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line (floor-mounted robot)
-      arm.radius = 0.04;
-      c.occluder = arm;
-    }
-    const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario.fps));
-    cv::RNG noise(mix_seed(scenario.seed, frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u)));
-    Transform pose = cell.motion.T_camL_panel(t);
-    if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
-    // Rendering takes no simulated time: the cameras expose at their rate whatever this
-    // machine's speed.
-    clock.begin_work();
-    cv::Mat image = renderer.render(eye, pose, c, noise);
-    clock.end_work();
-    return image;
-  };
+  DoorCameras cameras(cell, scenario, sim, *robot_sim, clock);
+  ScratchDir scratch;
+  commission(cell, cameras.renderer(), list.panel_id, scratch.path / "calibration");
 
   daemon::DaemonOptions d;
   d.board = board;
@@ -345,8 +423,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       clock.advance(std::max(0.0, age));
       start_time();
     };
-  d.hal.render = [render](double t) { return render(stereo::Eye::kLeft, t); };
-  d.hal.render_right = [render](double t) { return render(stereo::Eye::kRight, t); };
+  d.hal.render = [&cameras](double t) { return cameras.render(stereo::Eye::kLeft, t); };
+  d.hal.render_right = [&cameras](double t) { return cameras.render(stereo::Eye::kRight, t); };
   d.hal.sim_frame_period = 1.0 / scenario.fps;
   d.station.job.planner.chain.standoff = scenario.standoff;
   d.station.firmware_version = "twin";
@@ -360,45 +438,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   daemon::EdgeDaemon edge(std::move(d), clock);
   edge.start();
   auto& gpio = dynamic_cast<hal::SimGpio&>(edge.gpio());
-
-  // The line: the panel reaches the marking place (part-present) at t_mark; an e-stop
-  // when the scenario asks for one.
   std::atomic<bool> done{false};
-  std::vector<Fault> faults = sim.faults;
-  std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
-  std::thread line([&] {
-    // The line runs once the list is out (time stands still before).
-    while (!done && held) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    while (!done && clock.now() < cell.t_mark) clock.sleep_for(0.01);
-    if (!done) gpio.drive(board.gpio.part_present.name, true);
-    for (const Fault& f : faults) {
-      const double at = cell.t_mark + f.after;
-      while (!done && clock.now() < at) clock.sleep_for(0.005);
-      if (done) return;
-      log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
-                " s");
-      switch (f.kind) {
-        case FaultKind::kEstop:
-          gpio.drive(board.gpio.estop.name, true);
-          break;
-        case FaultKind::kRobotLink:
-          robot_sim->inject_drop(1 << 30);
-          break;
-        case FaultKind::kRobotLinkBlip:
-          robot_sim->inject_drop(1);
-          break;
-        case FaultKind::kRobotFault:
-          robot_sim->inject_drive_fault();
-          break;
-        case FaultKind::kCamera:
-          cameras_dead = true;
-          break;
-        case FaultKind::kTrackingLost:
-          panel_gone = true;
-          break;
-      }
-    }
-  });
+  std::thread line([&] { run_line(sim, cell, board, clock, held, done, gpio, *robot_sim, cameras); });
 
   ScenarioResult result;
   result.options = scenario;
@@ -429,7 +470,6 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   result.valve_open_at_end = gpio.level(board.gpio.sprayer_valve.name);
   for (const hal::EdgeRecord& e : gpio.edges())
     if (e.line == board.gpio.sprayer_valve.name && e.active) ++result.valve_pulses;
-
   result.report.job_id = list.job_id;
   for (const protocol::Defect& def : list.defects)
     if (const auto it = outcome.marks.find(def.id); it != outcome.marks.end()) {

@@ -61,18 +61,18 @@ TEST(StationSim, ErrorsReflectACalibrationOffset) {
   s.robot_accuracy = 0.0;
   s.robot_repeatability = 0.0;
   SimulationOptions sim;
-  sim.clock_rate = 4.0;
+  sim.clock_rate = 2.0;
   sim.truth_motion = true;
   const ScenarioResult exact = run_scenario(s, sim, d.list, d.truth);
   ASSERT_EQ(exact.errors.size(), 3u);
   // What remains is the panel's travel during the command latency, which a fast clock
-  // (×4 here) magnifies: a few ms of real latency is ~0.5 mm at 14 mm/s in a slow build.
-  EXPECT_LT(exact.max_abs.maxCoeff(), 1.0e-3);
+  // magnifies: 20 ms of real latency on a loaded machine is 0.56 mm at 14 mm/s at x2.
+  EXPECT_LT(exact.max_abs.maxCoeff(), 1.2e-3);
 
   s.calibration_translation = 5e-3;
   const ScenarioResult off = run_scenario(s, sim, d.list, d.truth);
   ASSERT_EQ(off.errors.size(), 3u);
-  EXPECT_GT(off.errors.front().error_base.norm(), 2e-3);
+  EXPECT_GT(off.errors.front().error_base.norm(), 3e-3);
 }
 
 TEST(StationSim, EstopStopsTheJobWithTheValveClosed) {
