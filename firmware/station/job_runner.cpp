@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -159,143 +160,175 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   return mark;
 }
 
+// The job's outcomes as they are decided: kept for the report, and passed on at once.
+class JobRunner::Outcomes {
+ public:
+  Outcomes(std::uint64_t job_id, JobEvents& events, const clock::Clock& clock, double epoch_offset)
+      : events_(events), clock_(clock), epoch_offset_(epoch_offset) {
+    report.job_id = job_id;
+  }
+  void add(protocol::Mark m) {
+    if (m.outcome != MarkOutcome::kMarked) m.time = clock_.now() + epoch_offset_;  // when given up
+    report.marks.push_back(m);
+    events_.reported(m);
+  }
+  // Every target left gets the same outcome.
+  void give_up(std::vector<Target>& remaining, MarkOutcome outcome, MarkReason reason);
+  protocol::MarkReport report;
+
+ private:
+  JobEvents& events_;
+  const clock::Clock& clock_;
+  double epoch_offset_;
+};
+
+void JobRunner::Outcomes::give_up(std::vector<Target>& remaining, MarkOutcome outcome, MarkReason reason) {
+  for (const Target& t : remaining) add(unmarked(t.id, outcome, reason));
+  remaining.clear();
+}
+
+std::vector<JobRunner::Target> JobRunner::targets_of(const protocol::DefectList& list,
+                                                     Outcomes& outcomes) const {
+  std::vector<Target> targets;
+  for (const protocol::Defect& d : list.defects) {
+    if (!markable(d.defect_class) || list.frame != "sls") {
+      outcomes.add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+      continue;
+    }
+    try {
+      targets.push_back(Target{d.id, plan::defect_frame(d.position, d.normal)});
+    } catch (const GeometryError&) {
+      outcomes.add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+    }
+  }
+  return targets;
+}
+
+bool JobRunner::wait_for_tracking(bool robot_live) {
+  const double deadline = clock_.now() + config_.tracking_timeout;
+  while (!tracking_ok() && clock_.now() < deadline && !cancelled_) {
+    if (robot_live) {
+      check_interlocks();
+      robot_.heartbeat();
+    }
+    clock_.sleep_for(config_.poll_period);
+  }
+  return tracking_ok();
+}
+
+void JobRunner::start_robot() {
+  robot_.connect();
+  robot_.heartbeat();
+  hal::RobotStatus s = robot_.status();
+  if (s.state == robot_link::State::kStopped || s.state == robot_link::State::kFault) {
+    // A stop the station itself caused (heartbeat pause between jobs, its own abort)
+    // is cleared by starting a job, the operator's go-ahead, given only while the
+    // e-stop is released. The robot's own faults (drive) need the robot's operator.
+    constexpr std::uint16_t kClearable = robot_link::fault::kHeartbeatLost | robot_link::fault::kAborted |
+                                         robot_link::fault::kWorkspace | robot_link::fault::kBadCommand;
+    if ((s.faults & ~kClearable) != 0)
+      throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) + ": " +
+                                                  robot_link::fault_names(s.faults) +
+                                                  " (needs the robot's reset)"};
+    check_interlocks();
+    log::info("robot " + std::string(robot_link::to_string(s.state)) + " (" +
+              robot_link::fault_names(s.faults) + "): resetting for the new job");
+    s = robot_.wait_done(robot_.reset(), config_.robot_reset_timeout, config_.poll_period, clock_);
+  }
+  tip_ = s.T_base_tool.translation();
+}
+
+void JobRunner::mark_remaining(std::vector<Target>& remaining, const plan::MotionPredictor& since_scan,
+                               Outcomes& outcomes) {
+  while (!remaining.empty()) {
+    check_interlocks();
+    if (!tracking_ok() && !wait_for_tracking(true)) {
+      outcomes.give_up(remaining, MarkOutcome::kSkipped, MarkReason::kTrackingLost);
+      return;
+    }
+    // The planner orders what is left for the panel where it is now; the first goes next.
+    std::vector<plan::DefectToMark> to_plan;
+    for (const Target& t : remaining) to_plan.push_back({t.id, t.T_sls_v});
+    const auto plan = plan::plan_marks(to_plan, tip_, clock_.now(), since_scan, config_.planner);
+    if (plan.empty() || !plan.front().reachable) {
+      outcomes.give_up(remaining, MarkOutcome::kSkipped, MarkReason::kOutOfReach);
+      return;
+    }
+    const auto it = std::find_if(remaining.begin(), remaining.end(),
+                                 [&](const Target& t) { return t.id == plan.front().id; });
+    const Target target = *it;
+    remaining.erase(it);
+    try {
+      outcomes.add(mark_one(target, since_scan));
+    } catch (const SkipDefect& skip) {
+      log::warn("defect " + std::to_string(target.id) + " skipped: " + skip.why);
+      outcomes.add(unmarked(target.id, MarkOutcome::kSkipped, skip.reason));
+    } catch (...) {
+      remaining.insert(remaining.begin(), target);  // not decided: the job's abort reports it
+      throw;
+    }
+  }
+}
+
 protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_scan, JobEvents* events) {
   cancelled_ = false;
   state_ = protocol::EdgeState::kJobReceived;
-  protocol::MarkReport report;
-  report.job_id = list.job_id;
   JobEvents no_events;
   events_ = events ? events : &no_events;
   struct Detach {
     JobEvents*& e;
     ~Detach() { e = nullptr; }
   } detach{events_};
-  const auto add = [&](protocol::Mark m) {
-    if (m.outcome != MarkOutcome::kMarked) m.time = clock_.now() + config_.epoch_offset;  // when given up
-    report.marks.push_back(m);
-    events_->reported(m);
-  };
-
-  std::vector<Target> remaining;
-  for (const protocol::Defect& d : list.defects) {
-    if (!markable(d.defect_class) || list.frame != "sls") {
-      add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
-      continue;
-    }
-    try {
-      remaining.push_back(Target{d.id, plan::defect_frame(d.position, d.normal)});
-    } catch (const GeometryError&) {
-      add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
-    }
-  }
+  Outcomes outcomes(list.job_id, *events_, clock_, config_.epoch_offset);
+  std::vector<Target> remaining = targets_of(list, outcomes);
   // M since the scan: the motion source's M(t) composed with the inverse of M(t_scan).
   const plan::MotionPredictor since_scan = [this, t_scan](double t) {
     return motion_.predict(t) * motion_.predict(t_scan).inverse();
   };
-  const auto fail_remaining = [&](MarkOutcome outcome, MarkReason reason) {
-    for (const Target& t : remaining) add(unmarked(t.id, outcome, reason));
-    remaining.clear();
-  };
+  const std::string job = "job " + std::to_string(list.job_id);
 
   state_ = protocol::EdgeState::kTracking;
-  const double track_deadline = clock_.now() + config_.tracking_timeout;
-  while (!tracking_ok() && clock_.now() < track_deadline && !cancelled_)
-    clock_.sleep_for(config_.poll_period);
-  if (!tracking_ok()) {
-    log::warn("job " + std::to_string(list.job_id) + ": no tracking; nothing marked");
-    fail_remaining(MarkOutcome::kSkipped, MarkReason::kTrackingLost);
+  if (!wait_for_tracking(false)) {
+    log::warn(job + ": no tracking; nothing marked");
+    outcomes.give_up(remaining, MarkOutcome::kSkipped, MarkReason::kTrackingLost);
     safety_.valve_off();
     state_ = protocol::EdgeState::kDone;
-    return report;
+    return outcomes.report;
   }
-
   state_ = protocol::EdgeState::kMarking;
-  bool safe = false;
   if (!safety_.arm()) {
-    log::error("job " + std::to_string(list.job_id) + ": e-stop pressed; nothing marked");
-    fail_remaining(MarkOutcome::kFailed, MarkReason::kEmergencyStop);
+    log::error(job + ": e-stop pressed; nothing marked");
+    outcomes.give_up(remaining, MarkOutcome::kFailed, MarkReason::kEmergencyStop);
     safety_.valve_off();
     state_ = protocol::EdgeState::kSafe;
-    return report;
+    return outcomes.report;
   }
+  // Any fault: the valve closes, the robot is aborted, the rest is reported with why.
+  std::optional<MarkReason> fault;
   try {
-    robot_.connect();
-    robot_.heartbeat();
-    hal::RobotStatus s = robot_.status();
-    if (s.state == robot_link::State::kStopped || s.state == robot_link::State::kFault) {
-      // A stop the station itself caused (heartbeat pause between jobs, its own abort)
-      // is cleared by starting a job, the operator's go-ahead, given only while the
-      // e-stop is released. The robot's own faults (drive) need the robot's operator.
-      constexpr std::uint16_t kClearable = robot_link::fault::kHeartbeatLost | robot_link::fault::kAborted |
-                                           robot_link::fault::kWorkspace | robot_link::fault::kBadCommand;
-      if ((s.faults & ~kClearable) != 0)
-        throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) +
-                                                    ": " + robot_link::fault_names(s.faults) +
-                                                    " (needs the robot's reset)"};
-      check_interlocks();
-      log::info("robot " + std::string(robot_link::to_string(s.state)) + " (" +
-                robot_link::fault_names(s.faults) + "): resetting for the new job");
-      s = robot_.wait_done(robot_.reset(), config_.robot_reset_timeout, config_.poll_period, clock_);
-    }
-    tip_ = s.T_base_tool.translation();
-    while (!remaining.empty()) {
-      check_interlocks();
-      if (!tracking_ok()) {
-        const double deadline = clock_.now() + config_.tracking_timeout;
-        while (!tracking_ok() && clock_.now() < deadline) {
-          check_interlocks();
-          robot_.heartbeat();
-          clock_.sleep_for(config_.poll_period);
-        }
-        if (!tracking_ok()) {
-          fail_remaining(MarkOutcome::kSkipped, MarkReason::kTrackingLost);
-          break;
-        }
-      }
-      std::vector<plan::DefectToMark> to_plan;
-      for (const Target& t : remaining) to_plan.push_back({t.id, t.T_sls_v});
-      const auto plan = plan::plan_marks(to_plan, tip_, clock_.now(), since_scan, config_.planner);
-      if (plan.empty() || !plan.front().reachable) {
-        fail_remaining(MarkOutcome::kSkipped, MarkReason::kOutOfReach);
-        break;
-      }
-      const auto it = std::find_if(remaining.begin(), remaining.end(),
-                                   [&](const Target& t) { return t.id == plan.front().id; });
-      const Target target = *it;
-      try {
-        add(mark_one(target, since_scan));
-      } catch (const SkipDefect& skip) {
-        log::warn("defect " + std::to_string(target.id) + " skipped: " + skip.why);
-        add(unmarked(target.id, MarkOutcome::kSkipped, skip.reason));
-      }
-      remaining.erase(std::find_if(remaining.begin(), remaining.end(),
-                                   [&](const Target& t) { return t.id == target.id; }));
-    }
+    start_robot();
+    mark_remaining(remaining, since_scan, outcomes);
   } catch (const JobAbort& a) {
-    log::error("job " + std::to_string(list.job_id) + " stopped: " + a.why);
-    safe = true;
-    fail_remaining(MarkOutcome::kFailed, a.reason);
+    log::error(job + " stopped: " + a.why);
+    fault = a.reason;
   } catch (const hal::RobotError& e) {
-    log::error("job " + std::to_string(list.job_id) + " robot error: " + e.what());
-    safe = true;
-    fail_remaining(MarkOutcome::kFailed, e.kind() == hal::RobotError::Kind::kWaitTimeout
-                                             ? MarkReason::kTimeout
-                                             : MarkReason::kRobotFault);
+    log::error(job + " robot error: " + e.what());
+    fault = e.kind() == hal::RobotError::Kind::kWaitTimeout ? MarkReason::kTimeout : MarkReason::kRobotFault;
   } catch (const std::exception& e) {
-    log::error("job " + std::to_string(list.job_id) + " failed: " + e.what());
-    safe = true;
-    fail_remaining(MarkOutcome::kFailed, MarkReason::kAborted);
+    log::error(job + " failed: " + e.what());
+    fault = MarkReason::kAborted;
   }
   safety_.valve_off();
-  if (safe) {
+  if (fault) {
+    outcomes.give_up(remaining, MarkOutcome::kFailed, *fault);
     try {
       robot_.abort();
     } catch (const std::exception& e) {
       log::error(std::string("robot abort failed (robot watchdog stops it): ") + e.what());
     }
   }
-  state_ = safe ? protocol::EdgeState::kSafe : protocol::EdgeState::kDone;
-  return report;
+  state_ = fault ? protocol::EdgeState::kSafe : protocol::EdgeState::kDone;
+  return outcomes.report;
 }
 
 }  // namespace dentmark::station

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <vector>
 
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/common/protocol/messages.h"
@@ -78,6 +79,18 @@ class JobRunner {
 
  private:
   struct Target;
+  class Outcomes;
+  // The list's markable defects as targets; the others are reported not markable.
+  std::vector<Target> targets_of(const protocol::DefectList& list, Outcomes& outcomes) const;
+  // Waits up to tracking_timeout for a usable estimate (with the robot live: interlocks
+  // checked and the heartbeat kept); true when tracking is ok.
+  bool wait_for_tracking(bool robot_live);
+  // Connects, and clears a stop the station itself caused; throws on the robot's own fault.
+  void start_robot();
+  // Marks until nothing is left or tracking or reach give out (those get their reason);
+  // faults propagate with the undecided targets still in 'remaining'.
+  void mark_remaining(std::vector<Target>& remaining, const plan::MotionPredictor& since_scan,
+                      Outcomes& outcomes);
   protocol::Mark mark_one(const Target& target, const plan::MotionPredictor& since_scan);
   hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time);
   Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
