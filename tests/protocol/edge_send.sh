@@ -16,35 +16,8 @@ cleanup() {
 }
 trap cleanup EXIT
 
-# The station: a short rendered sequence, its panel model taught, identity transforms.
-"$host" synth stereo --out "$tmp/seq" --seconds 3 --width 640 --height 512 --focal 870 >/dev/null
-mkdir -p "$tmp/cal/models"
-cp "$tmp/seq/stereo.yaml" "$tmp/cal/stereo.yaml"
-"$edge" teach --sequence "$tmp/seq" --out "$tmp/cal/models/door-FL-0001.yaml" 2>/dev/null
-for t in robot:T_base_camL scanner:T_camL_sls; do
-  printf '%%YAML:1.0\n---\n%s: !!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [ 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1. ]\nrms: 0.\n' \
-    "${t#*:}" >"$tmp/cal/${t%%:*}.yaml"
-done
-"$host" robot-sim --port 0 >"$tmp/robot.log" 2>&1 &
-robot=$!
-i=0
-while ! grep -qs 'listening on [0-9.]*:[0-9]' "$tmp/robot.log"; do
-  i=$((i + 1)); [ $i -gt 100 ] && { cat "$tmp/robot.log"; echo "robot simulator did not start"; exit 1; }
-  sleep 0.1
-done
-robot_port=$(sed -n 's/.*listening on [0-9.]*:\([0-9][0-9]*\).*/\1/p' "$tmp/robot.log" | head -1)
-cat >"$tmp/board.yaml" <<YAML
-board: { vendor: test, name: loopback }
-cpu: { arch: x86_64 }
-gpio:
-  backend: sim
-  sprayer_valve: { line: "sprayer-valve" }
-  estop: { line: "estop", active_low: true }
-camera: { backend: replay, left: "$tmp/seq", width: 640, height: 512 }
-modbus: { transport: tcp, host: "127.0.0.1", port: $robot_port }
-link: { port: 7878 }
-limits: { workspace_min: [-1, -1, 0], workspace_max: [1, 1, 1], max_speed: 0.25, max_acceleration: 1.0 }
-YAML
+. "$(dirname "$0")/../station/loopback_station.sh"
+loopback_station "$tmp" 3
 
 runs=0
 start_edge() {  # args: extra options
@@ -54,11 +27,7 @@ start_edge() {  # args: extra options
   "$edge" run --board "$tmp/board.yaml" --calibration "$tmp/cal" --state-dir "$tmp/state$runs" --port 0 "$@" \
     2>"$log" &
   pid=$!
-  i=0
-  while ! grep -qs 'listening on port [0-9]' "$log"; do
-    i=$((i + 1)); [ $i -gt 200 ] && { cat "$log"; echo "edge did not start"; exit 1; }
-    sleep 0.1
-  done
+  wait_for "$log" 'listening on port [0-9]' "the edge daemon"
   port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$log")
 }
 stop_edge() {

@@ -15,38 +15,8 @@ cleanup() {
   rm -rf "$tmp"
 }
 trap cleanup EXIT
-wait_for() {  # file pattern what
-  i=0
-  while ! grep -qs "$2" "$1"; do
-    i=$((i + 1)); [ $i -gt 600 ] && { cat "$1"; echo "timed out waiting for $3"; exit 1; }
-    sleep 0.1
-  done
-}
-
-"$host" synth stereo --out "$tmp/seq" --seconds 60 --width 640 --height 512 --focal 870 >/dev/null 2>&1
-mkdir -p "$tmp/cal/models"
-cp "$tmp/seq/stereo.yaml" "$tmp/cal/stereo.yaml"
-"$edge" teach --sequence "$tmp/seq" --out "$tmp/cal/models/door-FL-0001.yaml" 2>/dev/null
-for t in robot:T_base_camL scanner:T_camL_sls; do
-  printf '%%YAML:1.0\n---\n%s: !!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [ 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1. ]\nrms: 0.\n' \
-    "${t#*:}" >"$tmp/cal/${t%%:*}.yaml"
-done
-"$host" robot-sim --port 0 --record "$tmp/robot.json" >"$tmp/robot.log" 2>&1 &
-robot=$!
-wait_for "$tmp/robot.log" 'listening on [0-9.]*:[0-9]' "the robot simulator"
-robot_port=$(sed -n 's/.*listening on [0-9.]*:\([0-9][0-9]*\).*/\1/p' "$tmp/robot.log" | head -1)
-cat >"$tmp/board.yaml" <<YAML
-board: { vendor: test, name: loopback }
-cpu: { arch: x86_64 }
-gpio:
-  backend: sim
-  sprayer_valve: { line: "sprayer-valve" }
-  estop: { line: "estop", active_low: true }
-camera: { backend: replay, left: "$tmp/seq", width: 640, height: 512 }
-modbus: { transport: tcp, host: "127.0.0.1", port: $robot_port, timeout: 0.5 }
-link: { port: 7878 }
-limits: { workspace_min: [-0.6, -0.8, -0.1], workspace_max: [0.9, 0.8, 1.2], max_speed: 0.25, max_acceleration: 1.0 }
-YAML
+. "$(dirname "$0")/loopback_station.sh"
+loopback_station "$tmp" 60 --record "$tmp/robot.json"
 "$host" synth scan --out "$tmp/door.ply" --truth "$tmp/truth.json" --seed 5 --defects 6 >/dev/null 2>&1
 
 port=0 runs=0

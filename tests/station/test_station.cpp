@@ -102,17 +102,29 @@ class StationTest : public ::testing::Test {
         robot, safety, clock_, tracking, std::move(part), {}, [this] { return kEpoch + clock_.now(); }};
   }
 
+  // A station with stand-in devices on this test's clock and state folder (not started).
+  struct Rig {
+    explicit Rig(StationTest& t, std::function<bool()> part = {})
+        : robot(t.clock_, t.limits_),
+          safety(t.clock_),
+          tracking(t.clock_),
+          store(t.dir_),
+          station(t.devices(robot, safety, tracking, std::move(part)), store, t.config()) {}
+    MockRobot robot;
+    MockSafety safety;
+    FakeTracking tracking;
+    JobStore store;
+    Station station;
+  };
+
   clock::SimClock clock_;  // manual: the job thread's sleeps move time, so jobs run instantly
   plan::RobotLimits limits_;
   fs::path dir_;
 };
 
 TEST_F(StationTest, AcceptsAStoredListMarksItAndReportsEveryDefect) {
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking), store, config());
+  Rig rig(*this);
+  auto& [robot, safety, tracking, store, station] = rig;
   station.start();
   const auto list = door_list(42);
   // Sent 2 s after the scan (host clock): the scan lies 2 s before the arrival here.
@@ -167,11 +179,8 @@ TEST_F(StationTest, AcceptsAStoredListMarksItAndReportsEveryDefect) {
 }
 
 TEST_F(StationTest, RefusesAnUnknownPanelModelAndMovesNothing) {
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking), store, config());
+  Rig rig(*this);
+  auto& [robot, safety, tracking, store, station] = rig;
   station.start();
   const Received r = as_received(door_list(7, "unknown-door"), kEpoch);
   const auto reply = station.accept(r.decoded, r.frame, clock_.now());
@@ -188,12 +197,9 @@ TEST_F(StationTest, RefusesAnUnknownPanelModelAndMovesNothing) {
 }
 
 TEST_F(StationTest, EstopPressedRefusesTheJob) {
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
+  Rig rig(*this);
+  auto& [robot, safety, tracking, store, station] = rig;
   safety.estop_after = 0.0;
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking), store, config());
   station.start();
   const Received r = as_received(door_list(8), kEpoch);
   const auto reply = station.accept(r.decoded, r.frame, clock_.now());
@@ -203,11 +209,8 @@ TEST_F(StationTest, EstopPressedRefusesTheJob) {
 }
 
 TEST_F(StationTest, WaitsForThePartBeforeMarking) {
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking, [this] { return clock_.now() >= 20.0; }), store, config());
+  Rig rig(*this, [this] { return clock_.now() >= 20.0; });
+  auto& [robot, safety, tracking, store, station] = rig;
   station.start();
   const Received r = as_received(door_list(12), kEpoch);
   ASSERT_TRUE(std::holds_alternative<protocol::Ack>(station.accept(r.decoded, r.frame, clock_.now())));
@@ -231,11 +234,8 @@ TEST_F(StationTest, AfterACrashTheInterruptedJobIsReportedAndNothingIsSprayedTwi
     j->reported(m);
     j->spraying(2);
   }
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking), store, config());
+  Rig rig(*this);
+  auto& [robot, safety, tracking, store, station] = rig;
   station.start();
   EXPECT_EQ(station.status().state, protocol::EdgeState::kSafe);
   const auto reports = station.reports(77);
@@ -259,11 +259,8 @@ TEST_F(StationTest, AfterACrashTheInterruptedJobIsReportedAndNothingIsSprayedTwi
 }
 
 TEST_F(StationTest, HostGetsEveryReportOverTheLinkAndStatusOnRequest) {
-  MockRobot robot(clock_, limits_);
-  MockSafety safety(clock_);
-  FakeTracking tracking(clock_);
-  JobStore store(dir_);
-  Station station(devices(robot, safety, tracking), store, config());
+  Rig rig(*this);
+  auto& [robot, safety, tracking, store, station] = rig;
   station.start();
   link::ServerOptions so;
   so.bind_address = "127.0.0.1";
