@@ -35,11 +35,13 @@ elseif(CASE STREQUAL "unpaired")
   set(expect_code 2)
   set(expect_regex "left05.jpg: no right image numbered 5 to pair with")
 elseif(CASE STREQUAL "wrong_pattern")
+  # Six pairs: a search that fails is slow (both scales, every image), ~25x under qemu.
+  set(pairs 01 02 03 04 05 06)
   copy_pairs()
   # A count larger than the board's (a smaller one can match part of the board).
   set(args --images ${dir} --pattern chessboard:10x7 --square 0.025 --out ${out})
   set(expect_code 2)
-  set(expect_regex "chessboard:10x7 square 0.025 m\\) was found in both images of 0 of 13 pairs")
+  set(expect_regex "chessboard:10x7 square 0.025 m\\) was found in both images of 0 of 6 pairs")
 elseif(CASE STREQUAL "bad_square")
   copy_pairs()
   set(args --images ${dir} --pattern chessboard:9x6 --square 0 --out ${out})
@@ -55,7 +57,7 @@ else()
 endif()
 
 execute_process(COMMAND ${EDGE} calibrate stereo ${args} RESULT_VARIABLE code OUTPUT_VARIABLE stdout
-                ERROR_VARIABLE stderr TIMEOUT 150)
+                ERROR_VARIABLE stderr TIMEOUT 800)
 set(all "${stdout}${stderr}")
 if(NOT "${code}" STREQUAL "${expect_code}")
   message(FATAL_ERROR "exit code ${code}, expected ${expect_code}; output:\n${all}")
