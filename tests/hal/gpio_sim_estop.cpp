@@ -105,9 +105,9 @@ int run(const std::string& board_path, int trials) {
     const double t0 = now();
     press(chip, g.estop, true);
     double t1 = now();
-    // Polls with short sleeps: a busy loop would take the CPU the supervisor needs.
+    // Polls every 0.2 ms: a busy loop would take the CPU the supervisor needs.
     while (valve_active() && t1 - t0 < 1.0) {
-      std::this_thread::sleep_for(std::chrono::microseconds(50));
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
       t1 = now();
     }
     if (valve_active()) {
@@ -143,10 +143,15 @@ int run(const std::string& board_path, int trials) {
   std::vector<double> sorted = latency;
   std::sort(sorted.begin(), sorted.end());
   const double worst = sorted.back(), median = sorted[sorted.size() / 2];
-  std::printf("e-stop edge -> valve line low: median %.3f ms, max %.3f ms over %d trials (limit %.0f ms)\n",
-              1e3 * median, 1e3 * worst, trials, 1e3 * kLimit);
+  const double p90 = sorted[(sorted.size() * 9) / 10];
+  const auto over = std::count_if(sorted.begin(), sorted.end(), [](double t) { return t > kLimit; });
+  std::printf(
+      "e-stop edge -> valve line low: median %.3f ms, 90th percentile %.3f ms, max %.3f ms over %d trials "
+      "(limit %.0f ms)\n",
+      1e3 * median, 1e3 * p90, 1e3 * worst, trials, 1e3 * kLimit);
   if (worst > kLimit) {
-    std::printf("fail: max latency %.3f ms > %.0f ms\n", 1e3 * worst, 1e3 * kLimit);
+    std::printf("fail: %ld of %d trials over %.0f ms (max %.3f ms)\n", static_cast<long>(over), trials,
+                1e3 * kLimit, 1e3 * worst);
     return 1;
   }
   std::puts("pass");
