@@ -39,7 +39,25 @@ SimClock::SimClock(double rate, double start) : rate_(rate), offset_(start), rea
 }
 
 double SimClock::now_locked() const {
-  return offset_ + rate_ * (real_monotonic() - real_start_);
+  return paused_ ? offset_ : offset_ + rate_ * (real_monotonic() - real_start_);
+}
+
+void SimClock::pause() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (rate_ == 0.0 || holds_++ > 0) return;  // manual time moves only when told anyway
+  offset_ = now_locked();
+  paused_ = true;
+}
+
+void SimClock::resume() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (holds_ == 0 || --holds_ > 0) return;
+    if (!paused_) return;
+    real_start_ = real_monotonic();
+    paused_ = false;
+  }
+  changed_.notify_all();
 }
 
 double SimClock::now() const {
@@ -69,8 +87,12 @@ void SimClock::sleep_until(double t) {
   for (;;) {
     const double left = t - now_locked();
     if (left <= 0.0) return;
-    // Woken early by advance(); otherwise the real time the remainder takes at this rate.
-    changed_.wait_for(lock, std::chrono::duration<double>(left / rate_));
+    // Woken early by advance() or resume(); otherwise the real time the remainder takes
+    // at this rate (while paused, until woken).
+    if (paused_)
+      changed_.wait(lock);
+    else
+      changed_.wait_for(lock, std::chrono::duration<double>(left / rate_));
   }
 }
 

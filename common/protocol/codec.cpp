@@ -196,6 +196,8 @@ std::vector<std::uint8_t> encode(const Status& status, const EncodeOptions& opti
   w.u64(status.job_id);
   w.f64(status.uptime);
   w.str8(status.firmware_version);
+  w.u32(status.defects_total);  // minor 1
+  w.u32(status.defects_reported);
   f.end_head(0);
   return f.finish();
 }
@@ -440,6 +442,11 @@ class PayloadDecoder {
     if (!std::isfinite(s.uptime) || s.uptime < 0)
       return fail(DecodeErrorKind::kBadValue, at + 16, "uptime not finite and ≥ 0");
     if (auto e = str8(s.firmware_version, "firmware_version")) return *e;
+    if (h_.minor >= 1) {
+      if (!need(8)) return trunc("job progress (minor 1)");
+      s.defects_total = head_.u32();
+      s.defects_reported = head_.u32();
+    }
     if (auto e = end_head()) return *e;
     auto n = records();
     if (!n) return n.error();

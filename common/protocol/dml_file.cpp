@@ -6,7 +6,8 @@
 
 #include <cerrno>
 #include <cstring>
-#include <random>
+
+#include "dentmark/common/atomic_file.h"
 
 namespace dentmark::protocol {
 
@@ -16,32 +17,10 @@ DmlFileError::DmlFileError(const std::string& path, const DecodeError& error)
     : std::runtime_error(path + ": " + error.message()), decode_error_(error) {}
 
 void write_frame_file(const std::string& path, std::span<const std::uint8_t> frame) {
-  // Temporary name in the same folder, so rename() is atomic on the same file system.
-  std::random_device rd;
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(rd());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) throw DmlFileError(path, std::string("cannot create temporary file: ") + std::strerror(errno));
-  std::size_t done = 0;
-  while (done < frame.size()) {
-    const ssize_t n = ::write(fd, frame.data() + done, frame.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const std::string why = std::strerror(errno);
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      throw DmlFileError(path, "write failed: " + why);
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(tmp.c_str());
-    throw DmlFileError(path, "write failed: " + why);
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(tmp.c_str());
-    throw DmlFileError(path, "rename failed: " + why);
+  try {
+    files::write_atomically(path, frame);
+  } catch (const files::FileError& e) {
+    throw DmlFileError(path, std::string(e.what()).substr(path.size() + 2));
   }
 }
 

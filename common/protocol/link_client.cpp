@@ -49,6 +49,7 @@ Decoded LinkClient::request(const Message& message) {
     EncodeOptions eo;
     eo.sequence = sequence_++;
     eo.key = options_.key;
+    if (options_.clock) eo.send_time = options_.clock();
     const auto frame = encode(message, eo);
     last_digest_ = payload_digest(frame);
     if (!write_all(fd_, frame, options_.reply_timeout, &why)) {
@@ -81,6 +82,32 @@ Decoded LinkClient::request(const Message& message) {
     return std::move(d.value());
   }
   throw LinkError(endpoint + ": " + why + " (after " + std::to_string(attempts) + " attempts)");
+}
+
+std::optional<Decoded> LinkClient::receive(std::chrono::milliseconds timeout) {
+  const std::string endpoint = options_.host + ":" + std::to_string(options_.port);
+  if (fd_ < 0) throw LinkError(endpoint + ": not connected");
+  DecodeOptions dopt;
+  dopt.key = options_.key;
+  ReadFrame r = read_frame(fd_, ReadTimeouts{timeout, options_.reply_timeout}, dopt);
+  if (r.status == IoStatus::kIdle) {
+    disconnect();
+    return std::nullopt;
+  }
+  if (r.status != IoStatus::kOk) {
+    disconnect();
+    throw LinkError(endpoint + ": " +
+                    (r.status == IoStatus::kBadFrame
+                         ? "bad frame: " + r.error.message()
+                         : std::string(to_string(r.status)) + (r.detail.empty() ? "" : ": " + r.detail)));
+  }
+  auto d = decode(r.frame, dopt);
+  if (!d) {
+    disconnect();
+    throw LinkError(endpoint + ": bad frame: " + d.error().message());
+  }
+  if (std::holds_alternative<ErrorMessage>(d.value().message)) disconnect();
+  return std::move(d.value());
 }
 
 }  // namespace dentmark::protocol

@@ -48,6 +48,7 @@ std::string fault_names(std::uint16_t faults) {
   add(fault::kHeartbeatLost, "heartbeat_lost");
   add(fault::kBadCommand, "bad_command");
   add(fault::kAborted, "aborted");
+  add(fault::kDrive, "drive");
   if (faults != 0) {
     if (!out.empty()) out += "|";
     out += "0x" + [&] {

@@ -1,16 +1,17 @@
-// `dentmark-edge run`: the edge daemon.
+// `dentmark-edge run`: the edge daemon (design.md §4). Parses its options, wires the
+// station through daemon::EdgeDaemon and serves until SIGINT or SIGTERM, telling
+// systemd its state (Type=notify: READY=1, WATCHDOG=1, STATUS=, STOPPING=1).
+#include <systemd/sd-daemon.h>
+
+#include <cstdlib>
 #include <memory>
-#include <optional>
-#include <sstream>
 #include <string>
 
 #include "commands.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/hmac_key.h"
 #include "dentmark/common/version.h"
-#include "dentmark/firmware/board/board_config.h"
-#include "dentmark/firmware/link/job_inbox.h"
-#include "dentmark/firmware/link/link_server.h"
+#include "dentmark/firmware/daemon/edge_daemon.h"
 #include "stop_signal.h"
 
 namespace dentmark::edge {
@@ -18,83 +19,109 @@ namespace {
 
 struct RunOptions {
   std::string board_file;
+  std::string calibration_dir;  // default: /etc/dentmark/calibration
+  std::string state_dir;        // default: $STATE_DIRECTORY (systemd) or /var/lib/dentmark
   bool check_only = false;
   bool verbose = false;
   int port = -1;  // -1: the board's link.port; 0: any free port
+  std::string bind_address = "0.0.0.0";
   std::string key_file;
   double replay_window = 30.0;
   int max_clients = 8;
 };
 
-double wall_clock() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+std::string default_state_dir() {
+  // systemd's StateDirectory= may list several folders separated by ':'.
+  if (const char* s = std::getenv("STATE_DIRECTORY"); s && *s) {
+    const std::string all(s);
+    return all.substr(0, all.find(':'));
+  }
+  return "/var/lib/dentmark";
 }
 
-std::string describe(const board::BoardConfig& b) {
-  std::ostringstream os;
-  os << "board " << b.vendor << "/" << b.name << " (" << b.source << "): camera "
-     << to_string(b.camera.backend) << " " << b.camera.width << "x" << b.camera.height << ", modbus "
-     << to_string(b.modbus.transport) << " ";
-  if (b.modbus.transport == board::ModbusTransport::kTcp)
-    os << b.modbus.host << ":" << b.modbus.port;
-  else
-    os << b.modbus.device << " " << b.modbus.baud << " " << b.modbus.parity;
-  os << ", valve line '" << b.gpio.sprayer_valve.name << "', e-stop line '" << b.gpio.estop.name
-     << "', link port " << b.link.port;
-  return os.str();
+std::string status_line(const protocol::Status& s) {
+  std::string line = std::string(protocol::to_string(s.state));
+  if (s.job_id != 0)
+    line += ", job " + std::to_string(s.job_id) + " (" + std::to_string(s.defects_reported) + "/" +
+            std::to_string(s.defects_total) + " reported)";
+  if (s.fault_bits != 0) line += ", faults 0x" + std::to_string(s.fault_bits);
+  return line;
+}
+
+// --check: the files the daemon would start from, without opening a device.
+int check_setup(const daemon::DaemonOptions& d, bool with_calibration) {
+  try {
+    if (!d.key_file.empty()) protocol::HmacKey::load(d.key_file);
+    if (with_calibration) station::load_station_calibration(d.calibration_dir);
+  } catch (const std::exception& e) {
+    log::error(e.what());
+    return 2;
+  }
+  log::info("board " + d.board.vendor + "/" + d.board.name + " (" + d.board.source + ") valid" +
+            (d.key_file.empty() ? "" : ", key " + d.key_file + " valid") +
+            (with_calibration ? ", calibration " + d.calibration_dir.string() + " valid" : ""));
+  return 0;
 }
 
 int run_daemon(const RunOptions& opt) {
   if (opt.verbose) log::set_level(log::Level::kDebug);
-  board::BoardConfig board;
+  daemon::DaemonOptions d;
   try {
-    board = board::load_board_config(opt.board_file);
+    d.board = board::load_board_config(opt.board_file);
   } catch (const board::BoardError& e) {
     log::error(e.what());
     return 2;
   }
-  std::optional<protocol::HmacKey> key;
-  if (!opt.key_file.empty()) {
-    try {
-      key = protocol::HmacKey::load(opt.key_file);
-    } catch (const protocol::KeyFileError& e) {
-      log::error(e.what());
-      return 2;
-    }
-  }
-  log::info(std::string("dentmark-edge ") + kVersion + ": " + describe(board));
-  if (opt.check_only) return 0;
+  d.calibration_dir = opt.calibration_dir.empty() ? "/etc/dentmark/calibration" : opt.calibration_dir;
+  d.state_dir = opt.state_dir.empty() ? default_state_dir() : opt.state_dir;
+  d.key_file = opt.key_file;
+  d.port = opt.port;
+  d.bind_address = opt.bind_address;
+  d.replay_window = opt.replay_window;
+  d.max_clients = opt.max_clients;
+  d.station.firmware_version = kVersion;
+
+  if (opt.check_only) return check_setup(d, !opt.calibration_dir.empty());
 
   // Before any thread starts, so that every thread inherits the blocked signals.
   StopSignal stop;
-  link::JobInbox inbox;
-  link::ServerOptions so;
-  so.port = static_cast<std::uint16_t>(opt.port >= 0 ? opt.port : board.link.port);
-  so.key = key ? &*key : nullptr;
-  so.replay_window = opt.replay_window;
-  so.max_clients = opt.max_clients;
-  so.clock = wall_clock;
-  link::LinkServer server(so, [&inbox](const protocol::Decoded& d, std::span<const std::uint8_t> frame) {
-    return inbox.handle(d, frame, wall_clock());
-  });
+  hal::SafetySupervisor::install_process_guards();
+  std::unique_ptr<daemon::EdgeDaemon> edge;
   try {
-    server.start();
-  } catch (const link::LinkServerError& e) {
+    edge = std::make_unique<daemon::EdgeDaemon>(std::move(d), clock::monotonic_clock());
+  } catch (const std::exception& e) {
     log::error(e.what());
+    sd_notifyf(0, "STATUS=failed: %s", e.what());
+    return 2;
+  }
+  log::info(std::string("dentmark-edge ") + kVersion + ": " + edge->describe());
+  try {
+    edge->start();
+  } catch (const std::exception& e) {
+    log::error(e.what());
+    sd_notifyf(0, "STATUS=failed: %s", e.what());
     return 1;
   }
-  log::info("link: listening on port " + std::to_string(server.port()) +
-            (key ? " (HMAC-SHA-256 required, replay window " + std::to_string(opt.replay_window) + " s)"
-                 : " (unauthenticated: no --key)"));
-  log::info("running; SIGINT or SIGTERM stops");
-  while (!stop.wait_for(std::chrono::milliseconds(200))) {
+  sd_notifyf(0, "READY=1\nSTATUS=%s", status_line(edge->station().status()).c_str());
+  std::uint64_t watchdog_usec = 0;
+  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0;
+  log::info(
+      "running; SIGINT or SIGTERM stops" +
+      (watchdog ? std::string("; systemd watchdog ") + std::to_string(watchdog_usec / 1000) + " ms" : ""));
+  std::string last_status;
+  while (!stop.wait_for(std::chrono::milliseconds(100))) {
+    // The watchdog is fed only while the station answers: a hung station lock is a restart.
+    const std::string now = status_line(edge->station().status());
+    if (watchdog) sd_notify(0, "WATCHDOG=1");
+    if (now != last_status) {
+      sd_notifyf(0, "STATUS=%s", now.c_str());
+      last_status = now;
+    }
   }
-  log::info("signal " + std::to_string(stop.signal_number()) + " received; shut down cleanly");
-  server.stop();
-  if (auto job = inbox.last_job())
-    log::info("last job " + std::to_string(job->list.job_id) + " (" +
-              std::to_string(job->list.defects.size()) + " defects) kept; " +
-              std::to_string(inbox.jobs_received()) + " lists received");
+  sd_notify(0, "STOPPING=1");
+  log::info("signal " + std::to_string(stop.signal_number()) +
+            " received; stopping (valve closed, robot stopped)");
+  edge->stop();
   return 0;
 }
 
@@ -102,13 +129,21 @@ int run_daemon(const RunOptions& opt) {
 
 void register_run(CLI::App& app) {
   auto opt = std::make_shared<RunOptions>();
-  CLI::App* run = app.add_subcommand("run", "Run the edge daemon with a board file");
+  CLI::App* run =
+      app.add_subcommand("run", "Run the edge daemon: take jobs, track the panel, mark it, report");
   run->add_option("--board", opt->board_file, "Board file (boards/<vendor>/<board>/board.yaml)")->required();
-  run->add_flag("--check", opt->check_only, "Validate the board file and exit");
+  run->add_option("--calibration", opt->calibration_dir,
+                  "Calibration folder: stereo.yaml, robot.yaml, scanner.yaml, models/ (default: "
+                  "/etc/dentmark/calibration)");
+  run->add_option("--state-dir", opt->state_dir,
+                  "Job store (default: $STATE_DIRECTORY, else /var/lib/dentmark)");
+  run->add_flag("--check", opt->check_only,
+                "Validate the board file, the key file and (when given) the calibration folder, then exit");
   run->add_flag("-v,--verbose", opt->verbose, "Debug logging");
   run->add_option("--port", opt->port,
                   "Link port (overrides the board's link.port; 0 = any free port, logged)")
       ->check(CLI::Range(0, 65535));
+  run->add_option("--bind", opt->bind_address, "Link address to listen on (IPv4)")->capture_default_str();
   run->add_option("--key", opt->key_file, "Pre-shared HMAC-SHA-256 key file (hex); refuses unsigned frames");
   run->add_option("--replay-window", opt->replay_window, "Accepted send-time skew and replay memory, s")
       ->check(CLI::Range(0.1, 3600.0));

@@ -194,11 +194,16 @@ BoardConfig parse_root(const YAML::Node& root, const std::string& source) {
   cfg.cpu_flags = cpu.string_or("flags", "");
 
   const Section gpio = top.section("gpio");
-  gpio.allow_only({"chip_label", "sprayer_valve", "estop", "part_present"});
+  gpio.allow_only({"backend", "chip_label", "sprayer_valve", "estop", "part_present"});
+  const std::string gpio_backend = gpio.string_or("backend", "chardev");
+  if (gpio_backend != "chardev" && gpio_backend != "sim")
+    gpio.fail("gpio.backend", "'" + gpio_backend + "' is not chardev or sim");
+  cfg.gpio.backend = gpio_backend == "sim" ? GpioBackend::kSim : GpioBackend::kChardev;
   cfg.gpio.chip_label = gpio.string_or("chip_label", "");
   cfg.gpio.sprayer_valve = parse_line(gpio.section("sprayer_valve"));
   cfg.gpio.estop = parse_line(gpio.section("estop"));
-  cfg.gpio.part_present = parse_line(gpio.section("part_present"));
+  // Optional: without a part sensor a job marks as soon as it tracks the panel.
+  if (gpio.has("part_present")) cfg.gpio.part_present = parse_line(gpio.section("part_present"));
   const std::string& valve = cfg.gpio.sprayer_valve.name;
   if (valve == cfg.gpio.estop.name || valve == cfg.gpio.part_present.name ||
       cfg.gpio.estop.name == cfg.gpio.part_present.name)

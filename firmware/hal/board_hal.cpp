@@ -15,11 +15,11 @@ namespace dentmark::hal {
 
 std::unique_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice& choice,
                                 clock::Clock& clock) {
-  if (choice.simulate)
-    return std::make_unique<SimGpio>(
-        std::vector<std::string>{board.gpio.sprayer_valve.name, board.gpio.estop.name,
-                                 board.gpio.part_present.name},
-        clock, choice.gpio_record);
+  if (choice.simulate || board.gpio.backend == board::GpioBackend::kSim) {
+    std::vector<std::string> lines{board.gpio.sprayer_valve.name, board.gpio.estop.name};
+    if (!board.gpio.part_present.name.empty()) lines.push_back(board.gpio.part_present.name);
+    return std::make_unique<SimGpio>(lines, clock, choice.gpio_record);
+  }
 #ifdef DENTMARK_HAVE_GPIOD_V1
   return std::make_unique<GpiodGpio>(board.gpio.chip_label);
 #else
@@ -51,9 +51,6 @@ std::unique_ptr<Camera> make_camera(const board::BoardConfig& board, StereoSide 
     case board::CameraBackend::kV4l2:
       return std::make_unique<V4l2Camera>(where, size);
     case board::CameraBackend::kLibcamera:
-#ifdef DENTMARK_HAVE_GPIOD_V1
-#include "dentmark/firmware/hal/gpio/gpiod_gpio.h"
-#endif
 #ifdef DENTMARK_HAVE_LIBCAMERA
       return std::make_unique<LibcameraCamera>(where, size);
 #else
@@ -65,8 +62,10 @@ std::unique_ptr<Camera> make_camera(const board::BoardConfig& board, StereoSide 
                                             side, clock);
     case board::CameraBackend::kSim:
       if (!choice.render) throw CameraError(where + ": simulated camera needs a renderer");
-      return std::make_unique<SimCamera>(where, size, choice.sim_frame_period, choice.render, clock,
-                                         side == StereoSide::kRight ? choice.sim_right_offset : 0.0);
+      return std::make_unique<SimCamera>(
+          where, size, choice.sim_frame_period,
+          side == StereoSide::kRight && choice.render_right ? choice.render_right : choice.render, clock,
+          side == StereoSide::kRight ? choice.sim_right_offset : 0.0);
   }
   throw CameraError(board.source + ": camera.backend: unknown backend");
 }

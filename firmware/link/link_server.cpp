@@ -10,6 +10,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <optional>
 
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/link_client.h"
@@ -60,12 +61,14 @@ void LinkServer::start() {
     throw LinkServerError(std::string("link: eventfd: ") + std::strerror(errno));
   }
   running_ = true;
+  stopping_ = false;
   acceptor_ = std::thread([this] { accept_loop(); });
 }
 
 void LinkServer::stop() {
   if (!running_) return;
   running_ = false;
+  stopping_ = true;
   const std::uint64_t one = 1;
   // Level-triggered and never read: every poll() on stop_fd_ wakes from now on.
   [[maybe_unused]] const auto n = ::write(stop_fd_, &one, sizeof one);
@@ -205,15 +208,20 @@ void LinkServer::serve(Connection& c) {
       }
     }
     ++stats_.frames_ok;
-    protocol::Message answer;
+    std::optional<Reply> answer;
     try {
-      answer = handler_(d.value(), r.frame);
+      answer.emplace(handler_(d.value(), r.frame));
     } catch (const std::exception& e) {
       log::error("link: " + c.peer + ": handler failed: " + e.what());
       refuse(c, protocol::ErrorCode::kInternal, h.sequence, 0, e.what());
       break;
     }
-    if (!reply(c, answer)) break;
+    if (!reply(c, answer->message)) break;
+    if (answer->follow) {
+      log::debug("link: " + c.peer + " subscribed");
+      answer->follow([this, &c](const protocol::Message& m) { return !stopping_ && reply(c, m); });
+      break;
+    }
   }
   log::debug("link: " + c.peer + " disconnected");
 }

@@ -1,30 +1,37 @@
 #include "dentmark/firmware/simulation/station_sim.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <mutex>
+#include <filesystem>
 #include <numbers>
 #include <random>
 #include <thread>
 
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/common/log.h"
+#include "dentmark/common/protocol/job_session.h"
 #include "dentmark/firmware/board/board_config.h"
+#include "dentmark/firmware/daemon/edge_daemon.h"
 #include "dentmark/firmware/hal/gpio/sim_gpio.h"
-#include "dentmark/firmware/hal/robot/modbus_robot.h"
-#include "dentmark/firmware/hal/safety/safety_supervisor.h"
-#include "dentmark/firmware/station/job_runner.h"
-#include "dentmark/firmware/station/supervised_safety.h"
-#include "dentmark/firmware/station/tracking_motion_source.h"
+#include "dentmark/firmware/station/station_calibration.h"
+#include "dentmark/firmware/track/panel_model.h"
 #include "dentmark/sim/robot/robot_simulator.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
 namespace dentmark::simulation {
+namespace fs = std::filesystem;
+
 namespace {
 
-// The panel's true motion, as a perfect tracker would report it.
+// The twin's "Unix time": its simulated clock from a fixed epoch, so that the host's
+// stamps (scan_time, send_time) and the daemon's reports are on one line.
+constexpr double kEpoch = 1.75e9;
+
+// The panel's true motion, as a perfect tracker would report it (diagnostics).
 class TruthMotion final : public station::MotionSource {
  public:
   TruthMotion(const stereo::PanelMotion& motion, clock::Clock& clock) : motion_(motion), clock_(clock) {}
@@ -44,155 +51,76 @@ class TruthMotion final : public station::MotionSource {
   clock::Clock& clock_;
 };
 
-track::StereoCalibration calibration_of(const stereo::StereoRig& rig) {
-  track::StereoCalibration c;
-  c.size = rig.size;
-  c.left.K = rig.left.K;
-  c.left.D = rig.left.D.clone();
-  c.right.K = rig.right.K;
-  c.right.D = rig.right.D.clone();
-  c.T_camR_camL = rig.T_camR_camL;
-  return c;
+class TruthTracking final : public station::PanelTracking {
+ public:
+  TruthTracking(const stereo::PanelMotion& motion, clock::Clock& clock) : motion_(motion), clock_(clock) {}
+  std::optional<std::string> refuse(const protocol::DefectList&) override { return std::nullopt; }
+  std::unique_ptr<station::MotionSource> start(const protocol::DefectList&, double) override {
+    return std::make_unique<TruthMotion>(motion_, clock_);
+  }
+
+ private:
+  const stereo::PanelMotion& motion_;
+  clock::Clock& clock_;
+};
+
+// A folder of its own, removed with everything in it when the scenario ends.
+struct ScratchDir {
+  ScratchDir() {
+    std::random_device rd;
+    path = fs::temp_directory_path() /
+           ("dentmark-twin-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
+    fs::create_directories(path / "calibration" / "models");
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  fs::path path;
+};
+
+// The station's calibration folder as commissioning would leave it: the rig's stereo
+// calibration, the robot and scanner transforms with the scenario's calibration
+// errors, and the door's panel model taught on the scan's frame.
+void commission(const Workcell& cell, const stereo::StereoRenderer& renderer, const std::string& panel_id,
+                const fs::path& dir) {
+  stereo::write_stereo_yaml(cell.rig, dir / "stereo.yaml");
+  station::save_transform(dir / "robot.yaml", "T_base_camL", cell.T_base_camL_est, 0.0);
+  station::save_transform(dir / "scanner.yaml", "T_camL_sls", cell.T_camL_sls_est, 0.0);
+  const Transform pose0 = cell.motion.T_camL_panel(0.0);
+  cv::RNG rng(1);
+  const cv::Mat left = renderer.render(stereo::Eye::kLeft, pose0, {}, rng);
+  const cv::Mat right = renderer.render(stereo::Eye::kRight, pose0, {}, rng);
+  std::vector<Eigen::Vector3d> p_camL;
+  std::vector<cv::Point2f> pl, pr;
+  for (const auto& q : cell.door.features) {
+    const Eigen::Vector3d p(q.x(), q.y(), 0.0);
+    p_camL.push_back(pose0 * p);
+    const cv::Point2d a = renderer.project(stereo::Eye::kLeft, pose0, p);
+    const cv::Point2d b = renderer.project(stereo::Eye::kRight, pose0, p);
+    pl.emplace_back(static_cast<float>(a.x), static_cast<float>(a.y));
+    pr.emplace_back(static_cast<float>(b.x), static_cast<float>(b.y));
+  }
+  track::save_panel_model(track::make_panel_model(left, right, p_camL, pl, pr),
+                          dir / "models" / (panel_id + ".yaml"));
 }
 
-}  // namespace
+std::string twin_board_file(const SimulationOptions& sim) {
+  if (!sim.board_file.empty()) return sim.board_file;
+  return std::string(DENTMARK_SOURCE_DIR) + "/boards/sim/twin/board.yaml";
+}
 
-ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
-                            const protocol::DefectList& list, const ScanTruth& truth) {
-  const auto real_start = std::chrono::steady_clock::now();
-  const Workcell cell = make_workcell(scenario, truth.T_sls_panel, truth.panel_width, truth.panel_height);
-  clock::SimClock clock(sim.clock_rate);
-
-  // The robot: a Modbus TCP server on loopback with a fixed accuracy error.
-  std::mt19937_64 rng(scenario.seed);
-  std::normal_distribution<double> unit(0.0, 1.0);
-  sim::RobotSimConfig robot_cfg;
-  robot_cfg.workspace_min = cell.workspace_min;
-  robot_cfg.workspace_max = cell.workspace_max;
-  robot_cfg.home = cell.robot_home;
-  robot_cfg.accuracy_error = make_transform_rotvec(
-      Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
-  robot_cfg.repeatability = scenario.robot_repeatability;
-  robot_cfg.seed = static_cast<std::uint32_t>(scenario.seed);
-  robot_cfg.heartbeat_timeout = 0.5 * std::max(1.0, sim.clock_rate);
-  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_cfg, clock);
-  board::ModbusConfig modbus;
-  modbus.transport = board::ModbusTransport::kTcp;
-  modbus.host = "127.0.0.1";
-  modbus.port = robot_sim->port();
-  // Socket timeouts and the heartbeat watchdog are real-time budgets of the link (and
-  // of an emulated CPU under qemu); at a fast clock they are scaled to stay that long.
-  modbus.timeout = 0.5 * std::max(1.0, sim.clock_rate);
-  hal::ModbusRobot robot(modbus, clock);
-  robot.connect();
-
-  // The cameras: the door rendered where it truly is, with the arm in view.
-  const stereo::StereoRenderer renderer(cell.rig, cell.door);
-  const Transform T_camL_base = cell.T_base_camL_true.inverse();
-  const double t_end = cell.t_mark + 60.0;
-  long next_index = 0;
-  cv::RNG render_rng(static_cast<std::uint64_t>(scenario.seed));
-  std::mutex render_mutex;
-  const auto frames = [&]() -> std::optional<station::StereoFrame> {
-    std::lock_guard lock(render_mutex);
-    // Like a camera, deliver the newest exposure: frames missed while busy are dropped.
-    // The first pair (it seeds the tracker, whose M(t) is relative to it) is the one the
-    // cameras took with the scan at t = 0; later ones are the newest exposure.
-    if (next_index > 0)
-      next_index = std::max(next_index, static_cast<long>(std::floor(clock.now() * scenario.fps)));
-    const double t = next_index / scenario.fps;
-    if (t > t_end) return std::nullopt;
-    clock.sleep_until(t);
-    stereo::RenderConditions c;
-    c.gain = 1.0 + sim.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
-    if (sim.arm_occludes) {
-      const Transform tip = robot_sim->true_pose();
-      stereo::Occluder arm;
-      arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
-      arm.b = T_camL_base *
-              Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line, like a floor-mounted robot
-      arm.radius = 0.04;
-      c.occluder = arm;
-    }
-    const Transform pose = cell.motion.T_camL_panel(t);
-    station::StereoFrame f;
-    f.t = t;
-    f.index = next_index++;
-    f.left = renderer.render(stereo::Eye::kLeft, pose, c, render_rng);
-    stereo::RenderConditions cr = c;
-    cr.gain *= 0.96;
-    cr.offset = 3.0;
-    f.right = renderer.render(stereo::Eye::kRight, pose, cr, render_rng);
-    return f;
-  };
-  // Seeds as an operator would click them: a few pixels off the true corners.
-  std::vector<cv::Point2f> seeds;
-  std::uniform_real_distribution<double> click(-3.0, 3.0);
-  for (const auto& q : cell.door.features) {
-    const cv::Point2d p =
-        renderer.project(stereo::Eye::kRight, cell.motion.T_camL_panel(0.0), {q.x(), q.y(), 0.0});
-    seeds.emplace_back(static_cast<float>(p.x + click(rng)), static_cast<float>(p.y + click(rng)));
-  }
-  std::unique_ptr<station::TrackingMotionSource> tracking;
-  TruthMotion truth_motion(cell.motion, clock);
-  if (!sim.truth_motion)
-    tracking = std::make_unique<station::TrackingMotionSource>(calibration_of(cell.rig), seeds, frames);
-  station::MotionSource& motion = tracking ? static_cast<station::MotionSource&>(*tracking)
-                                           : static_cast<station::MotionSource&>(truth_motion);
-
-  // The sprayer valve and e-stop through the hal's safety supervisor on simulated lines;
-  // its watchdog allows a second of real time, enough for an emulated CPU.
-  const board::GpioLine valve_line{"sprayer-valve", false}, estop_line{"estop", true};
-  hal::SimGpio gpio({valve_line.name, estop_line.name}, clock);
-  hal::SafetySupervisor supervisor(gpio.request_output(valve_line, false), gpio.request_input(estop_line),
-                                   clock, hal::SafetyOptions{std::max(1.0, sim.clock_rate), 0.002});
-  station::SupervisedSafety safety(supervisor, clock);
-  station::JobConfig job;
-  job.planner.chain.T_base_camL = cell.T_base_camL_est;
-  job.planner.chain.T_camL_sls = cell.T_camL_sls_est;
-  job.planner.chain.standoff = scenario.standoff;
-  job.planner.limits.workspace_min = cell.workspace_min;
-  job.planner.limits.workspace_max = cell.workspace_max;
-  job.planner.limits.max_speed = robot_cfg.max_speed;
-  job.planner.limits.max_acceleration = robot_cfg.max_acceleration;
-  station::JobRunner runner(robot, safety, motion, clock, job);
-
-  clock.sleep_until(cell.t_mark);
-  std::thread estop;
-  std::atomic<bool> done{false};
-  if (sim.estop_after >= 0.0)
-    estop = std::thread([&] {
-      const double at = cell.t_mark + sim.estop_after;
-      while (!done && clock.now() < at) clock.sleep_for(0.005);
-      if (!done) gpio.drive(estop_line.name, true);
-    });
-  ScenarioResult result;
-  result.options = scenario;
-  result.defects_sent = static_cast<int>(list.defects.size());
-  result.report = runner.run(list, 0.0);
-  result.sim_seconds = clock.now();
-  done = true;
-  if (estop.joinable()) estop.join();
-  result.valve_open_at_end = gpio.level(valve_line.name);
-  if (tracking) {
-    tracking->stop();
-    result.frames_tracked = tracking->frames_tracked();
-    result.frames_failed = tracking->frames_failed();
-    result.frames_offered = static_cast<long>(result.sim_seconds * scenario.fps);
-  }
-  robot.disconnect();
-  robot_sim->stop();
-  for (const hal::EdgeRecord& e : gpio.edges())
-    if (e.line == valve_line.name && e.active) ++result.valve_pulses;
-
-  // Score each spray against the true defect nearest to what was sent for it.
-  const auto sprays = robot_sim->sprays();
-  std::size_t k = 0;
-  for (const protocol::Mark& m : result.report.marks) {
-    if (m.outcome != protocol::MarkOutcome::kMarked) continue;
-    ++result.marked;
-    if (k >= sprays.size()) break;
-    const sim::SprayRecord& spray = sprays[k++];
+// Scores each spray against the true defect nearest to what was sent for it.
+void score(ScenarioResult& result, const Workcell& cell, const protocol::DefectList& list,
+           const ScanTruth& truth, const std::vector<sim::SprayRecord>& sprays, double standoff) {
+  std::vector<protocol::Mark> marked;
+  for (const protocol::Mark& m : result.report.marks)
+    if (m.outcome == protocol::MarkOutcome::kMarked) marked.push_back(m);
+  std::sort(marked.begin(), marked.end(), [](const auto& a, const auto& b) { return a.time < b.time; });
+  result.marked = static_cast<int>(marked.size());
+  for (std::size_t k = 0; k < marked.size() && k < sprays.size(); ++k) {
+    const protocol::Mark& m = marked[k];
+    const sim::SprayRecord& spray = sprays[k];
     const auto sent = std::find_if(list.defects.begin(), list.defects.end(),
                                    [&](const protocol::Defect& d) { return d.id == m.defect_id; });
     int best = -1;
@@ -211,13 +139,295 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     e.defect_id = m.defect_id;
     e.truth_index = best;
     e.t_spray = spray.time;
-    e.error_base = spray.T_base_tip.translation() - (p.position + scenario.standoff * p.normal);
+    e.error_base = spray.T_base_tip.translation() - (p.position + standoff * p.normal);
     result.errors.push_back(e);
   }
   for (const MarkError& e : result.errors) {
     result.mean_abs += e.error_base.cwiseAbs() / static_cast<double>(result.errors.size());
     result.max_abs = result.max_abs.cwiseMax(e.error_base.cwiseAbs());
   }
+}
+
+// The host inside the twin: the code of `dentmark send --wait` (JobSession). The scan
+// was taken at t = 0; the list goes out while time stands still, then the line runs.
+protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, clock::SimClock& clock,
+                              const std::function<void()>& start_time, const Workcell& cell,
+                              const SimulationOptions& sim) {
+  const double slow = std::max(1.0, sim.clock_rate);
+  list.scan_time = kEpoch;
+  protocol::ClientOptions co;
+  co.host = "127.0.0.1";
+  co.port = port;
+  co.clock = [&clock] { return kEpoch + clock.now(); };
+  co.reply_timeout = std::chrono::milliseconds(static_cast<long>(5000 * slow));
+  protocol::JobSession host(co);
+  try {
+    host.send(list);
+    start_time();
+    protocol::JobWaitOptions wo;
+    wo.timeout = (cell.t_mark + 120.0) / sim.clock_rate + 60.0;
+    wo.silence = 5.0 * slow;
+    return host.wait(list, wo);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("the twin's host side: ") + e.what());
+  }
+}
+
+// An outside host (`dentmark send --wait`) sends the list and collects the reports;
+// the twin waits for the list, then for the job to end, and reads the same outcomes
+// from the station.
+protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDaemon& edge,
+                                const std::atomic<bool>& list_arrived, const SimulationOptions& sim,
+                                const Workcell& cell) {
+  log::info("twin: waiting for the host's list (job " + std::to_string(list.job_id) +
+            "): dentmark send FILE --to 127.0.0.1:" + std::to_string(edge.port()) + " --wait");
+  const auto now = [] { return std::chrono::steady_clock::now(); };
+  const auto list_deadline = now() + std::chrono::duration<double>(sim.serve_timeout);
+  while (!list_arrived && now() < list_deadline) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  if (!list_arrived)
+    throw std::runtime_error("no defect list came within " + std::to_string(sim.serve_timeout) + " s");
+  const auto job_deadline =
+      now() + std::chrono::duration<double>((cell.t_mark + 120.0) / sim.clock_rate + 60.0);
+  while (now() < job_deadline) {
+    const auto reports = edge.station().reports(list.job_id);
+    if (reports && reports->marks.size() >= list.defects.size() && edge.station().wait_idle(0.0)) {
+      protocol::JobOutcome outcome;
+      for (const protocol::Mark& m : reports->marks) outcome.marks[m.defect_id] = m;
+      outcome.complete = true;
+      return outcome;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  throw std::runtime_error("job " + std::to_string(list.job_id) + " did not end in time");
+}
+
+}  // namespace
+
+namespace {
+constexpr std::pair<FaultKind, const char*> kFaultNames[] = {
+    {FaultKind::kEstop, "estop"},
+    {FaultKind::kRobotLink, "robot-link"},
+    {FaultKind::kRobotLinkBlip, "robot-blip"},
+    {FaultKind::kRobotFault, "robot-fault"},
+    {FaultKind::kCamera, "camera"},
+    {FaultKind::kTrackingLost, "tracking"},
+};
+}  // namespace
+
+const char* to_string(FaultKind kind) {
+  for (const auto& [k, name] : kFaultNames)
+    if (k == kind) return name;
+  return "?";
+}
+
+Fault parse_fault(const std::string& text) {
+  const auto at = text.find('@');
+  std::string names;
+  for (const auto& [k, name] : kFaultNames) names += std::string(names.empty() ? "" : ", ") + name;
+  if (at == std::string::npos)
+    throw std::invalid_argument("fault '" + text + "': expected KIND@SECONDS, KIND one of " + names);
+  Fault f;
+  bool known = false;
+  for (const auto& [k, name] : kFaultNames)
+    if (text.compare(0, at, name) == 0 && std::string(name).size() == at) f.kind = k, known = true;
+  if (!known) throw std::invalid_argument("fault '" + text + "': unknown kind, expected one of " + names);
+  std::size_t used = 0;
+  try {
+    f.after = std::stod(text.substr(at + 1), &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() - at - 1 || !(f.after >= 0.0) || f.after > 3600.0)
+    throw std::invalid_argument("fault '" + text + "': the time after marking starts must be 0..3600 s");
+  return f;
+}
+
+ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
+                            const protocol::DefectList& sent_list, const ScanTruth& truth) {
+  const auto real_start = std::chrono::steady_clock::now();
+  const Workcell cell = make_workcell(scenario, truth.T_sls_panel, truth.panel_width, truth.panel_height);
+  const stereo::StereoRenderer renderer(cell.rig, cell.door);
+  protocol::DefectList list = sent_list;
+  if (list.panel_id.empty()) list.panel_id = "twin-door";
+  ScratchDir scratch;
+  commission(cell, renderer, list.panel_id, scratch.path / "calibration");
+
+  board::BoardConfig board = board::load_board_config(twin_board_file(sim));
+  board.camera.width = scenario.width;
+  board.camera.height = scenario.height;
+  board.limits.workspace_min = cell.workspace_min;
+  board.limits.workspace_max = cell.workspace_max;
+  // Socket timeouts and the heartbeat watchdog are real-time budgets of the link; at a
+  // fast clock they are scaled to stay that long.
+  const double slow = std::max(1.0, sim.clock_rate);
+  board.modbus.timeout *= slow;
+
+  clock::SimClock clock(sim.clock_rate);
+  // Time stands still while the station is set up and the list goes out: the scan is at
+  // t = 0 and the list arrives then (a fast clock would otherwise turn milliseconds of
+  // setup and loopback latency into millimetres of line travel).
+  clock.pause();
+  std::atomic<bool> held{true};
+  const auto start_time = [&] {
+    if (held.exchange(false)) clock.resume();
+  };
+  // The robot: the simulator serving Modbus TCP on loopback, with a fixed accuracy error.
+  std::mt19937_64 rng(scenario.seed);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  sim::RobotSimConfig robot_cfg;
+  robot_cfg.workspace_min = cell.workspace_min;
+  robot_cfg.workspace_max = cell.workspace_max;
+  robot_cfg.home = cell.robot_home;
+  robot_cfg.max_speed = board.limits.max_speed;
+  robot_cfg.max_acceleration = board.limits.max_acceleration;
+  robot_cfg.accuracy_error = make_transform_rotvec(
+      Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+  robot_cfg.repeatability = scenario.robot_repeatability;
+  robot_cfg.seed = static_cast<std::uint32_t>(scenario.seed);
+  robot_cfg.heartbeat_timeout = 0.5 * slow;
+  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_cfg, clock);
+  board.modbus.host = "127.0.0.1";
+  board.modbus.port = robot_sim->port();
+
+  // The cameras: the door rendered where it truly is, with the arm in view. Each frame's
+  // noise comes from its own seed, so a frame is the same whichever thread asks first.
+  const Transform T_camL_base = cell.T_base_camL_true.inverse();
+  std::atomic<bool> cameras_dead{false}, panel_gone{false};
+  const auto render = [&, T_camL_base](stereo::Eye eye, double t) {
+    if (cameras_dead) return cv::Mat();  // the driver's error: no image
+    stereo::RenderConditions c;
+    c.gain = 1.0 + sim.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
+    if (eye == stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
+    if (sim.arm_occludes) {
+      const Transform tip = robot_sim->true_pose();
+      stereo::Occluder arm;
+      arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
+      arm.b = T_camL_base * Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line (floor-mounted robot)
+      arm.radius = 0.04;
+      c.occluder = arm;
+    }
+    const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario.fps));
+    cv::RNG noise(scenario.seed * 1000003u + frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u));
+    Transform pose = cell.motion.T_camL_panel(t);
+    if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
+    // Rendering takes no simulated time: the cameras expose at their rate whatever this
+    // machine's speed.
+    clock.begin_work();
+    cv::Mat image = renderer.render(eye, pose, c, noise);
+    clock.end_work();
+    return image;
+  };
+
+  daemon::DaemonOptions d;
+  d.board = board;
+  d.calibration_dir = scratch.path / "calibration";
+  d.state_dir = scratch.path / "state";
+  d.port = sim.serve ? sim.serve_port : 0;
+  d.bind_address = "127.0.0.1";
+  std::atomic<bool> list_arrived{false};
+  if (sim.serve)
+    d.before_request = [&](const protocol::Decoded& req) {
+      const auto* l = std::get_if<protocol::DefectList>(&req.message);
+      if (l == nullptr || list_arrived.exchange(true)) return;
+      // The host scanned `age` ago by its own clock: the line ran meanwhile.
+      const double age = req.header.send_time - l->scan_time;
+      log::info("twin: the host's scan is " + std::to_string(age) + " s old; the line ran meanwhile");
+      clock.advance(std::max(0.0, age));
+      start_time();
+    };
+  d.hal.render = [render](double t) { return render(stereo::Eye::kLeft, t); };
+  d.hal.render_right = [render](double t) { return render(stereo::Eye::kRight, t); };
+  d.hal.sim_frame_period = 1.0 / scenario.fps;
+  d.station.job.planner.chain.standoff = scenario.standoff;
+  d.station.firmware_version = "twin";
+  d.tracking.grab_timeout = 1.0 * slow;
+  d.watchdog_timeout = slow;
+  d.unix_time = [&clock] { return kEpoch + clock.now(); };
+  if (sim.truth_motion)
+    d.tracking_override = [&](const station::StationCalibration&) {
+      return std::make_unique<TruthTracking>(cell.motion, clock);
+    };
+  daemon::EdgeDaemon edge(std::move(d), clock);
+  edge.start();
+  auto& gpio = dynamic_cast<hal::SimGpio&>(edge.gpio());
+
+  // The line: the panel reaches the marking place (part-present) at t_mark; an e-stop
+  // when the scenario asks for one.
+  std::atomic<bool> done{false};
+  std::vector<Fault> faults = sim.faults;
+  std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
+  std::thread line([&] {
+    // The line runs once the list is out (time stands still before).
+    while (!done && held) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    while (!done && clock.now() < cell.t_mark) clock.sleep_for(0.01);
+    if (!done) gpio.drive(board.gpio.part_present.name, true);
+    for (const Fault& f : faults) {
+      const double at = cell.t_mark + f.after;
+      while (!done && clock.now() < at) clock.sleep_for(0.005);
+      if (done) return;
+      log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
+                " s");
+      switch (f.kind) {
+        case FaultKind::kEstop:
+          gpio.drive(board.gpio.estop.name, true);
+          break;
+        case FaultKind::kRobotLink:
+          robot_sim->inject_drop(1 << 30);
+          break;
+        case FaultKind::kRobotLinkBlip:
+          robot_sim->inject_drop(1);
+          break;
+        case FaultKind::kRobotFault:
+          robot_sim->inject_drive_fault();
+          break;
+        case FaultKind::kCamera:
+          cameras_dead = true;
+          break;
+        case FaultKind::kTrackingLost:
+          panel_gone = true;
+          break;
+      }
+    }
+  });
+
+  ScenarioResult result;
+  result.options = scenario;
+  result.defects_sent = static_cast<int>(list.defects.size());
+  const auto finish_run = [&] {
+    start_time();
+    result.sim_seconds = clock.now();
+    done = true;
+    line.join();
+    if (edge.cameras()) {
+      result.frames_tracked = edge.cameras()->pairs_captured();
+      result.frames_offered = static_cast<long>(result.sim_seconds * scenario.fps);
+    }
+    edge.stop();
+    robot_sim->stop();
+  };
+  protocol::JobOutcome outcome;
+  try {
+    if (sim.serve)
+      outcome = serve_host(list, edge, list_arrived, sim, cell);
+    else
+      outcome = run_host(list, edge.port(), clock, start_time, cell, sim);
+  } catch (const std::exception&) {
+    finish_run();
+    throw;
+  }
+  finish_run();
+  result.valve_open_at_end = gpio.level(board.gpio.sprayer_valve.name);
+  for (const hal::EdgeRecord& e : gpio.edges())
+    if (e.line == board.gpio.sprayer_valve.name && e.active) ++result.valve_pulses;
+
+  result.report.job_id = list.job_id;
+  for (const protocol::Defect& def : list.defects)
+    if (const auto it = outcome.marks.find(def.id); it != outcome.marks.end()) {
+      protocol::Mark m = it->second;
+      m.time -= kEpoch;  // back on the twin's clock
+      result.report.marks.push_back(m);
+    }
+  score(result, cell, list, truth, robot_sim->sprays(), scenario.standoff);
   result.real_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - real_start).count();
   return result;
 }

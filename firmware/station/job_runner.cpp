@@ -139,6 +139,7 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   mark.estimated_error = std::sqrt(residual * residual + track_rms * track_rms);
 
   const double duration = config_.planner.spray_duration;
+  events_->spraying(target.id);
   const std::uint16_t seq = robot_.spray(duration);
   if (!safety_.spray(duration)) throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};
   const double deadline = clock_.now() + duration + config_.move_timeout_margin;
@@ -158,22 +159,33 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   return mark;
 }
 
-protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_scan) {
+protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_scan, JobEvents* events) {
   cancelled_ = false;
   state_ = protocol::EdgeState::kJobReceived;
   protocol::MarkReport report;
   report.job_id = list.job_id;
+  JobEvents no_events;
+  events_ = events ? events : &no_events;
+  struct Detach {
+    JobEvents*& e;
+    ~Detach() { e = nullptr; }
+  } detach{events_};
+  const auto add = [&](protocol::Mark m) {
+    if (m.outcome != MarkOutcome::kMarked) m.time = clock_.now() + config_.epoch_offset;  // when given up
+    report.marks.push_back(m);
+    events_->reported(m);
+  };
 
   std::vector<Target> remaining;
   for (const protocol::Defect& d : list.defects) {
     if (!markable(d.defect_class) || list.frame != "sls") {
-      report.marks.push_back(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+      add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
       continue;
     }
     try {
       remaining.push_back(Target{d.id, plan::defect_frame(d.position, d.normal)});
     } catch (const GeometryError&) {
-      report.marks.push_back(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
+      add(unmarked(d.id, MarkOutcome::kSkipped, MarkReason::kNotMarkable));
     }
   }
   // M since the scan: the motion source's M(t) composed with the inverse of M(t_scan).
@@ -181,7 +193,7 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
     return motion_.predict(t) * motion_.predict(t_scan).inverse();
   };
   const auto fail_remaining = [&](MarkOutcome outcome, MarkReason reason) {
-    for (const Target& t : remaining) report.marks.push_back(unmarked(t.id, outcome, reason));
+    for (const Target& t : remaining) add(unmarked(t.id, outcome, reason));
     remaining.clear();
   };
 
@@ -211,12 +223,19 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
     robot_.heartbeat();
     hal::RobotStatus s = robot_.status();
     if (s.state == robot_link::State::kStopped || s.state == robot_link::State::kFault) {
-      // A stop latched while idle (heartbeat pause between jobs): starting a job is the
-      // operator's go-ahead, given only while the e-stop is released.
+      // A stop the station itself caused (heartbeat pause between jobs, its own abort)
+      // is cleared by starting a job, the operator's go-ahead, given only while the
+      // e-stop is released. The robot's own faults (drive) need the robot's operator.
+      constexpr std::uint16_t kClearable = robot_link::fault::kHeartbeatLost | robot_link::fault::kAborted |
+                                           robot_link::fault::kWorkspace | robot_link::fault::kBadCommand;
+      if ((s.faults & ~kClearable) != 0)
+        throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) +
+                                                    ": " + robot_link::fault_names(s.faults) +
+                                                    " (needs the robot's reset)"};
       check_interlocks();
       log::info("robot " + std::string(robot_link::to_string(s.state)) + " (" +
                 robot_link::fault_names(s.faults) + "): resetting for the new job");
-      s = robot_.wait_done(robot_.reset(), 2.0, config_.poll_period, clock_);
+      s = robot_.wait_done(robot_.reset(), config_.robot_reset_timeout, config_.poll_period, clock_);
     }
     tip_ = s.T_base_tool.translation();
     while (!remaining.empty()) {
@@ -244,10 +263,10 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
                                    [&](const Target& t) { return t.id == plan.front().id; });
       const Target target = *it;
       try {
-        report.marks.push_back(mark_one(target, since_scan));
+        add(mark_one(target, since_scan));
       } catch (const SkipDefect& skip) {
         log::warn("defect " + std::to_string(target.id) + " skipped: " + skip.why);
-        report.marks.push_back(unmarked(target.id, MarkOutcome::kSkipped, skip.reason));
+        add(unmarked(target.id, MarkOutcome::kSkipped, skip.reason));
       }
       remaining.erase(std::find_if(remaining.begin(), remaining.end(),
                                    [&](const Target& t) { return t.id == target.id; }));

@@ -21,8 +21,8 @@ Transform extrapolate_motion(double t0, const Transform& M0, double t1, const Tr
 
 TrackingMotionSource::TrackingMotionSource(track::StereoCalibration calibration,
                                            std::vector<cv::Point2f> seeds_right, StereoFrameSource frames,
-                                           track::TrackerOptions options)
-    : tracker_(std::move(calibration), options), source_(std::move(frames)) {
+                                           track::TrackerOptions options, clock::Clock* clock)
+    : tracker_(std::move(calibration), options), source_(std::move(frames)), clock_(clock) {
   const auto first = source_();
   if (!first) throw track::TrackError("tracking: the camera gave no first frame");
   publish(tracker_.start(first->left, first->right, first->t, seeds_right, first->index));
@@ -48,12 +48,14 @@ void TrackingMotionSource::run() {
       break;
     }
     if (!f) break;
+    if (clock_) clock_->begin_work();
     try {
       publish(tracker_.track(f->left, f->right, f->t, f->index));
     } catch (const std::exception& e) {
       // A bad frame (wrong size, unreadable) is predicted through, not fatal.
       publish(tracker_.skip(f->t, f->index, e.what()));
     }
+    if (clock_) clock_->end_work();
   }
   ended_ = true;
 }

@@ -8,10 +8,13 @@
 #include <sstream>
 
 #include "commands.h"
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/dml_file.h"
 #include "dentmark/common/protocol/hmac_key.h"
+#include "dentmark/common/protocol/job_session.h"
 #include "dentmark/common/protocol/link_client.h"
+#include "dentmark/common/protocol/marks_json.h"
 #include "dentmark/common/protocol/socket_io.h"
 
 namespace dentmark::cli {
@@ -76,7 +79,9 @@ ordered_json to_json(const pr::Message& m) {
               {"job_id", x.job_id},
               {"firmware_version", x.firmware_version},
               {"protocol_version", std::to_string(x.protocol_major) + "." + std::to_string(x.protocol_minor)},
-              {"uptime", x.uptime}};
+              {"uptime", x.uptime},
+              {"defects_total", x.defects_total},
+              {"defects_reported", x.defects_reported}};
         } else {
           j = {{"code", pr::to_string(x.code)},
                {"job_id", x.job_id},
@@ -134,15 +139,28 @@ struct SendOptions {
   std::string key_file;
   double timeout = 5.0;
   int attempts = 3;
+  bool wait = false;
+  double job_timeout = 600.0;
+  std::string json_out;
 };
 
-int run_send(const SendOptions& o) {
-  std::string host;
-  std::uint16_t port = 0;
-  if (!pr::parse_endpoint(o.to, &host, &port)) {
-    log::error("--to '" + o.to + "': expected HOST:PORT");
-    return 2;
+std::optional<pr::ClientOptions> client_options(const std::string& option, const std::string& to,
+                                                const pr::HmacKey* key, double timeout, int attempts) {
+  pr::ClientOptions co;
+  if (!pr::parse_endpoint(to, &co.host, &co.port)) {
+    log::error(option + "'" + to + "': expected HOST:PORT");
+    return std::nullopt;
   }
+  co.reply_timeout = std::chrono::milliseconds(static_cast<long>(timeout * 1000));
+  co.connect_timeout = co.reply_timeout;
+  co.attempts = attempts;
+  co.key = key;
+  return co;
+}
+
+// Exit codes: 0 acknowledged (with --wait: every dent, bump and hole marked), 1 link
+// failure or refusal, 2 bad input, 3 (--wait) a defect was not marked or the job timed out.
+int run_send(const SendOptions& o) {
   std::optional<pr::HmacKey> key;
   pr::DefectList list;
   try {
@@ -152,36 +170,102 @@ int run_send(const SendOptions& o) {
     log::error(e.what());
     return 2;
   }
-  pr::ClientOptions co;
-  co.host = host;
-  co.port = port;
-  co.reply_timeout = std::chrono::milliseconds(static_cast<long>(o.timeout * 1000));
-  co.connect_timeout = co.reply_timeout;
-  co.attempts = o.attempts;
-  co.key = key ? &*key : nullptr;
-  pr::LinkClient client(co);
-  pr::Decoded reply;
+  const auto co = client_options("--to ", o.to, key ? &*key : nullptr, o.timeout, o.attempts);
+  if (!co) return 2;
+  pr::JobSession session(*co);
+  pr::JobOutcome outcome;
   try {
-    reply = client.request(list);
+    const pr::SentJob sent = session.send(list);
+    std::cout << "ack job " << sent.ack.job_id << ": " << sent.ack.count << " defects, sequence "
+              << sent.ack.acked_sequence << ", digest " << hex(sent.ack.digest)
+              << (sent.ack_matches ? " (matches)" : " (MISMATCH)")
+              << (sent.authenticated ? ", authenticated" : "") << "\n";
+    if (!sent.ack_matches) return 1;
+    if (!o.wait) return 0;
+    pr::JobWaitOptions wo;
+    wo.timeout = o.job_timeout;
+    wo.on_mark = [&](const pr::Mark& m) {
+      log::info(
+          "defect " + std::to_string(m.defect_id) + ": " + pr::to_string(m.outcome) +
+          (m.outcome == pr::MarkOutcome::kMarked ? "" : std::string(" (") + pr::to_string(m.reason) + ")"));
+    };
+    outcome = session.wait(list, wo);
+  } catch (const pr::Refused& e) {
+    log::error(o.to + " refused " + o.file + ": " + e.what());
+    return 1;
   } catch (const pr::LinkError& e) {
     log::error(e.what());
     return 1;
   }
-  if (const auto* err = std::get_if<pr::ErrorMessage>(&reply.message)) {
-    log::error(o.to + " refused " + o.file + ": " + pr::to_string(err->code) + ": " + err->text);
+  std::cout << pr::marks_table(list, outcome);
+  if (!o.json_out.empty()) {
+    try {
+      files::write_atomically(o.json_out, pr::marks_json(list, outcome));
+    } catch (const files::FileError& e) {
+      log::error(e.what());
+      return 2;
+    }
+  }
+  if (!outcome.complete) {
+    log::error("job " + std::to_string(list.job_id) + ": " + std::to_string(outcome.marks.size()) + " of " +
+               std::to_string(list.defects.size()) + " defects reported within " +
+               std::to_string(o.job_timeout) + " s");
+    return 3;
+  }
+  const bool ok = pr::all_marked(list, outcome);
+  std::cout << (ok ? "every defect marked\n" : "NOT every defect was marked\n");
+  return ok ? 0 : 3;
+}
+
+struct StatusOptions {
+  std::string to;
+  std::string key_file;
+  double timeout = 5.0;
+  bool json = false;
+};
+
+std::string fault_names(std::uint32_t bits) {
+  static const char* names[] = {"e-stop", "robot", "camera", "tracking", "link", "calibration"};
+  std::string s;
+  for (int i = 0; i < 32; ++i) {
+    if (!(bits & (1u << i))) continue;
+    if (!s.empty()) s += ", ";
+    s += i < 6 ? names[i] : "bit " + std::to_string(i);
+  }
+  return s.empty() ? "none" : s;
+}
+
+int run_status(const StatusOptions& o) {
+  std::optional<pr::HmacKey> key;
+  try {
+    if (!o.key_file.empty()) key = pr::HmacKey::load(o.key_file);
+  } catch (const std::exception& e) {
+    log::error(e.what());
+    return 2;
+  }
+  const auto co = client_options("", o.to, key ? &*key : nullptr, o.timeout, 1);
+  if (!co) return 2;
+  pr::Status s;
+  try {
+    s = pr::JobSession(*co).status();
+  } catch (const std::exception& e) {
+    log::error(o.to + ": " + e.what());
     return 1;
   }
-  const auto* ack = std::get_if<pr::Ack>(&reply.message);
-  if (ack == nullptr) {
-    log::error(o.to + ": unexpected reply " + pr::to_string(reply.header.type));
-    return 1;
+  if (o.json) {
+    ordered_json j = to_json(pr::Message(s));
+    j["faults"] = fault_names(s.fault_bits);
+    std::cout << j.dump(2) << "\n";
+    return 0;
   }
-  const bool matches = ack->digest == client.last_digest() && ack->count == list.defects.size() &&
-                       ack->job_id == list.job_id && ack->acked_sequence == client.last_sequence();
-  std::cout << "ack job " << ack->job_id << ": " << ack->count << " defects, sequence " << ack->acked_sequence
-            << ", digest " << hex(ack->digest) << (matches ? " (matches)" : " (MISMATCH)")
-            << (reply.authenticated ? ", authenticated" : "") << "\n";
-  return matches ? 0 : 1;
+  std::printf("edge %s: %s, faults: %s\n", o.to.c_str(), pr::to_string(s.state),
+              fault_names(s.fault_bits).c_str());
+  if (s.job_id != 0)
+    std::printf("job %llu: %u of %u defects reported\n", static_cast<unsigned long long>(s.job_id),
+                s.defects_reported, s.defects_total);
+  std::printf("up %.1f s, firmware %s, protocol %d.%d\n", s.uptime, s.firmware_version.c_str(),
+              s.protocol_major, s.protocol_minor);
+  return 0;
 }
 
 struct InspectOptions {
@@ -225,7 +309,21 @@ void register_link(CLI::App& app) {
   send->add_option("--timeout", so->timeout, "Connect and reply timeout per attempt, s")
       ->check(CLI::Range(0.01, 600.0));
   send->add_option("--attempts", so->attempts, "Connection attempts")->check(CLI::Range(1, 100));
+  send->add_flag("--wait", so->wait,
+                 "Wait for the job's mark reports and print them (exit 3 if not all marked)");
+  send->add_option("--job-timeout", so->job_timeout, "With --wait: s to wait for every defect's outcome")
+      ->check(CLI::Range(1.0, 86400.0));
+  send->add_option("--json", so->json_out, "With --wait: write the outcomes as dentmark.marks/1 JSON");
   send->callback([so] { exit_code() = run_send(*so); });
+
+  auto st = std::make_shared<StatusOptions>();
+  CLI::App* status = app.add_subcommand("status", "Print the edge box's state, faults, job and version");
+  status->add_option("edge", st->to, "Edge box HOST:PORT")->required();
+  status->add_option("--key", st->key_file, "Pre-shared HMAC-SHA-256 key file (hex)");
+  status->add_option("--timeout", st->timeout, "Connect and reply timeout, s")
+      ->check(CLI::Range(0.01, 600.0));
+  status->add_flag("--json", st->json, "JSON output");
+  status->callback([st] { exit_code() = run_status(*st); });
 
   auto io = std::make_shared<InspectOptions>();
   CLI::App* inspect = app.add_subcommand("inspect", "Print a protocol file (.dml or any frame)");

@@ -1,5 +1,6 @@
 // detect, eval and synth scan: thin wrappers over ingest, detect, report and sim/scan.
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -34,7 +35,18 @@ nlohmann::json rows_of(const Eigen::Isometry3d& t) {
 struct DetectArgs {
   std::string scan, units = "auto", config, out, json, report, ply;
   bool verbose = false;
+  std::string panel;                 // the panel model the edge tracks (its taught template's name)
+  std::optional<std::uint64_t> job;  // default: the scan time in milliseconds
+  std::optional<double> scan_time;   // s since the epoch; default: the scan file's modification time
 };
+
+// When the scan was taken: the scanner writes its file right after the exposure, so
+// the file's modification time stands for it unless the caller knows better.
+double scan_file_time(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return 0.0;
+  return static_cast<double>(st.st_mtim.tv_sec) + 1e-9 * static_cast<double>(st.st_mtim.tv_nsec);
+}
 
 struct EvalArgs {
   std::vector<std::string> truth, defects;
@@ -117,7 +129,13 @@ int run_detect(const DetectArgs& a) {
   det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
   const auto t_detect = Clock::now();
   try {
-    if (!a.out.empty()) protocol::write_dml(a.out, report::to_defect_list(det));
+    if (!a.out.empty()) {
+      protocol::DefectList list = report::to_defect_list(det);
+      list.scan_time = a.scan_time.value_or(scan_file_time(a.scan));
+      list.job_id = a.job.value_or(static_cast<std::uint64_t>(std::llround(list.scan_time * 1e3)));
+      list.panel_id = a.panel;
+      protocol::write_dml(a.out, list);
+    }
     report::SourceInfo src{a.scan, scan.input_points, mesh.triangle_count()};
     if (!a.json.empty()) {
       auto j = report::defects_to_json(det, src);
@@ -238,6 +256,11 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   det->add_option("--json", d->json, "Defect list as JSON (dentmark.defects/1)");
   det->add_option("--report", d->report, "PNG: deviation map with the defects ringed");
   det->add_option("--ply", d->ply, "PLY: the mesh with defect triangles coloured");
+  det->add_option("--panel", d->panel, "Panel model the edge box tracks this panel by (its taught template)");
+  det->add_option("--job", d->job, "Job id of the defect list (default: the scan time in ms)");
+  det->add_option("--scan-time", d->scan_time,
+                  "When the scan was taken, s since the epoch (default: the scan file's modification time)")
+      ->check(CLI::Range(0.0, 1e11));
   det->add_flag("--verbose,-v", d->verbose, "Per-stage timing and scan figures");
   det->callback([d] { exit_code() = run_detect(*d); });
 

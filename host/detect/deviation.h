@@ -1,5 +1,5 @@
 #pragma once
-// The height map's deviation from a robust reference surface (docs/detection.md §4).
+// The height map's deviation from a robust reference surface (docs/detection.md §6).
 // The reference is fitted, the pixels that stand out of it at any detection scale (and
 // those found off the skin: outlier spikes, a hole's backdrop) are left out, and it is
 // fitted again, cfg.reference_iterations times in all. Thresholds adapt to the noise

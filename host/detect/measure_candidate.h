@@ -1,5 +1,5 @@
 #pragma once
-// A dent or bump candidate measured on its own (docs/detection.md §5): against a local
+// A dent or bump candidate measured on its own (docs/detection.md §8): against a local
 // reference fitted to the clean ring of panel around it, its peak, its half-height
 // region, its apex height from the scan's own samples, and its centre.
 

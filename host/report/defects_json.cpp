@@ -8,6 +8,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "dentmark/common/atomic_file.h"
+
 namespace dentmark::report {
 namespace {
 
@@ -148,19 +150,10 @@ protocol::DefectList to_defect_list(const detect::Detection& det) {
 }
 
 void write_text_file(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw ReportError(path + ": cannot write: " + std::strerror(errno));
-  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  if (std::fclose(f) != 0 || !ok) {
-    std::remove(tmp.c_str());
-    throw ReportError(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw ReportError(path + ": cannot rename: " + ec.message());
+  try {
+    files::write_atomically(path, text);
+  } catch (const files::FileError& e) {
+    throw ReportError(e.what());
   }
 }
 

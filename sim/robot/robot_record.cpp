@@ -1,13 +1,9 @@
 #include "dentmark/sim/robot/robot_record.h"
 
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+
+#include "dentmark/common/atomic_file.h"
 
 namespace dentmark::sim {
 namespace {
@@ -37,22 +33,10 @@ void write_robot_record(const std::string& path, const std::vector<TipSample>& t
                              {"duration", s.duration},
                              {"tip", pose_json(s.T_base_tip)},
                              {"tool", pose_json(s.T_base_tool)}});
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out)
-      throw std::runtime_error(path + ": cannot open '" + tmp + "' for writing: " + std::strerror(errno));
-    out << doc.dump() << "\n";
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": write failed");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename the temporary file: " + std::strerror(err));
+  try {
+    files::write_atomically(path, doc.dump() + "\n");
+  } catch (const files::FileError& e) {
+    throw std::runtime_error(e.what());
   }
 }
 

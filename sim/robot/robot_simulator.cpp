@@ -141,6 +141,14 @@ void RobotSimulator::inject_exception(int exception_code, int n) {
   exception_n_ = n;
 }
 
+void RobotSimulator::inject_drive_fault() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double now = clock_.now();
+  step(now);
+  stop_motion(now, rl::fault::kDrive, rl::State::kStopped);
+  publish_status(now);
+}
+
 std::vector<TipSample> RobotSimulator::trajectory() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return trajectory_;

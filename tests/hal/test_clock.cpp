@@ -1,6 +1,7 @@
 // The injected clock: real monotonic time and simulated time (manual and scaled).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <thread>
 
 #include "dentmark/common/clock/clock.h"
@@ -68,4 +69,23 @@ TEST(SimClock, AdvanceWakesASleeper) {
   c.advance(2.0);
   sleeper.join();  // hangs (and the test times out) if advance() did not wake it
   EXPECT_GE(c.now(), deadline);
+}
+
+TEST(SimClock, PausedTimeStandsStillAndResumeWakesSleepers) {
+  SimClock c(100.0);
+  c.pause();
+  const double t0 = c.now();
+  std::atomic<bool> woke{false};
+  std::thread sleeper([&] {
+    c.sleep_until(t0 + 1.0);  // 10 ms real at this rate, were the clock running
+    woke = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  EXPECT_EQ(c.now(), t0) << "a paused clock does not move";
+  EXPECT_FALSE(woke) << "a sleeper does not wake while time stands still";
+  c.resume();
+  sleeper.join();
+  EXPECT_TRUE(woke);
+  EXPECT_GE(c.now(), t0 + 1.0);
+  EXPECT_LT(c.now(), t0 + 30.0) << "the paused 60 ms did not count (6 s at x100)";
 }

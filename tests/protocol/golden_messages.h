@@ -50,12 +50,17 @@ inline std::vector<Vector> vectors() {
   ack.job_id = 42;
   ack.acked_sequence = 1;
   ack.count = 2;
-  for (std::size_t i = 0; i < ack.digest.size(); ++i) ack.digest[i] = static_cast<std::uint8_t>(0xA0 + i);
+  // SHA-256 of defect_list.dml's payload (bytes 32 .. 32+P-1), as §4.2 defines it.
+  const char* digest_hex = "33ddbf94203459cbae1cf2de7f8a7e85af25ead8120b63022d167ec04da8562c";
+  for (std::size_t i = 0; i < ack.digest.size(); ++i)
+    ack.digest[i] = static_cast<std::uint8_t>(std::stoul(std::string(digest_hex + 2 * i, 2), nullptr, 16));
   MarkReport rep;
   rep.job_id = 42;
   rep.marks = {Mark{1, MarkOutcome::kMarked, MarkReason::kNone, 1750000030.5, {0.4, 0.1, 0.3}, 0.0015},
                Mark{2, MarkOutcome::kSkipped, MarkReason::kOutOfReach, 1750000031.0, {0.0, 0.0, 0.0}, 0.0}};
-  Status st{EdgeState::kTracking, 0x5, 42, "0.1.0", 1, 0, 3600.5};
+  Status st{EdgeState::kTracking, 0x5, 42, "0.1.0", 1, 1, 3600.5, 2, 1};
+  MarkReport subscribe;  // host -> edge: "send me job 42's reports" (no records)
+  subscribe.job_id = 42;
   ErrorMessage err{ErrorCode::kMalformedFrame, 0, 7, 12, "byte 12: over limit"};
   DefectList empty;
   empty.job_id = 43;
@@ -70,7 +75,17 @@ inline std::vector<Vector> vectors() {
       {"mark_report.dml", rep, 101, 1750000032.0, false},
       {"status.dml", st, 102, 1750000033.0, false},
       {"error.dml", err, 103, 1750000034.0, false},
+      {"subscribe.dml", subscribe, 4, 1750000002.0, false},
   };
+}
+
+// Frames of protocol 1.0 that a 1.1 decoder must still read (stored, never re-encoded).
+struct OlderVector {
+  std::string file;
+  Message message;
+};
+inline std::vector<OlderVector> older_vectors() {
+  return {{"status_1_0.dml", Status{EdgeState::kTracking, 0x5, 42, "0.1.0", 1, 0, 3600.5, 0, 0}}};
 }
 
 }  // namespace dentmark::protocol::golden

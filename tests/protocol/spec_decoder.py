@@ -90,7 +90,7 @@ def decode(data, key=None):
                                                  data[32 + plen:32 + plen + 32]):
             raise ValueError("bad HMAC")
     known = RECORD_SIZE.get(mtype, 0)
-    if (minor == 0 and record_size != known) or record_size < known or (known == 0 and record_size != 0):
+    if (minor <= 1 and record_size != known) or record_size < known or (known == 0 and record_size != 0):
         raise ValueError("bad record size")
     p = Reader(data, 32, 32 + plen)
     head_size = p.u16()
@@ -107,11 +107,13 @@ def decode(data, key=None):
         m = {"state": STATES[head.u8()], "protocol_major": head.u8(), "protocol_minor": head.u8()}
         head.zero(1)
         m.update(fault_bits=head.u32(), job_id=head.u64(), uptime=head.f64(), firmware_version=head.str8())
+        if minor >= 1:
+            m.update(defects_total=head.u32(), defects_reported=head.u32())
     elif mtype == 5:
         m = {"code": CODES[head.u16()]}
         head.zero(2)
         m.update(byte_offset=head.u32(), job_id=head.u64(), offending_sequence=head.u64(), text=head.str8())
-    if minor == 0 and head.pos != head.end:
+    if minor <= 1 and head.pos != head.end:
         raise ValueError("head_size larger than the fields")
     count = p.u32()
     if count > 4096 or count * record_size != p.end - p.pos:

@@ -39,6 +39,23 @@ TEST(Golden, EncodingEqualsTheStoredBytesAndDecodingTheValues) {
   }
 }
 
+TEST(Golden, OlderMinorFramesStillDecode) {
+  for (const auto& v : golden::older_vectors()) {
+    SCOPED_TRACE(v.file);
+    auto r = decode(read_frame_file(kDir + v.file), DecodeOptions{});
+    ASSERT_TRUE(r.ok()) << r.error().message();
+    EXPECT_EQ(r.value().header.minor, 0);
+    EXPECT_EQ(r.value().message, v.message);
+  }
+}
+
+TEST(Golden, AckDigestIsTheListsPayloadDigest) {
+  const auto list = read_frame_file(kDir + "defect_list.dml");
+  auto ack = decode(read_frame_file(kDir + "ack.dml"), DecodeOptions{});
+  ASSERT_TRUE(ack.ok());
+  EXPECT_EQ(std::get<Ack>(ack.value().message).digest, payload_digest(list));
+}
+
 // A few bytes spelled out, so that a change of the layout cannot slip through as a
 // consistent change of encoder and golden files together.
 TEST(Golden, HeaderBytesAreAsSpecified) {
@@ -46,7 +63,7 @@ TEST(Golden, HeaderBytesAreAsSpecified) {
   ASSERT_GE(b.size(), 40u);
   const std::vector<std::uint8_t> header(b.begin(), b.begin() + 32);
   const std::vector<std::uint8_t> expected{
-      'D',  'M',  'K',  'L',  1,    0,                  // magic, major, minor
+      'D',  'M',  'K',  'L',  1,    1,                  // magic, major, minor
       1,    0,                                          // type DefectList
       0,    0,                                          // flags
       88,   0,                                          // record size

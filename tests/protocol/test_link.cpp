@@ -10,8 +10,8 @@
 #include "dentmark/common/protocol/hmac_key.h"
 #include "dentmark/common/protocol/link_client.h"
 #include "dentmark/common/protocol/socket_io.h"
-#include "dentmark/firmware/link/job_inbox.h"
 #include "dentmark/firmware/link/link_server.h"
+#include "job_inbox.h"
 #include "test_support.h"
 
 namespace dentmark::link {

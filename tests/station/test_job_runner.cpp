@@ -7,130 +7,16 @@
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/plan/marking_pose.h"
 #include "dentmark/firmware/station/job_runner.h"
+#include "station_fakes.h"
 
 namespace dentmark::station {
 namespace {
 
 using protocol::MarkOutcome;
 using protocol::MarkReason;
-
-class MockRobot final : public hal::Robot {
- public:
-  MockRobot(clock::Clock& clock, plan::RobotLimits limits) : clock_(clock), limits_(limits) {
-    pose_.translation() = Eigen::Vector3d(0.3, 0.0, 0.4);
-  }
-  void connect() override { connected_ = true; }
-  void disconnect() override { connected_ = false; }
-  bool connected() const override { return connected_; }
-  std::uint16_t move_to(const Transform& T, double) override {
-    update();
-    from_ = pose_;
-    target_ = T;
-    t_start_ = clock_.now();
-    t_end_ = t_start_ + plan::move_time((T.translation() - pose_.translation()).norm(), limits_);
-    state_ = robot_link::State::kMoving;
-    return ++seq_;
-  }
-  std::uint16_t spray(double duration) override {
-    update();
-    sprays.push_back({clock_.now(), pose_});
-    t_end_ = clock_.now() + duration;
-    state_ = robot_link::State::kSpraying;
-    return ++seq_;
-  }
-  std::uint16_t abort() override {
-    ++aborts;
-    state_ = robot_link::State::kStopped;
-    return ++seq_;
-  }
-  std::uint16_t reset() override {
-    state_ = robot_link::State::kIdle;
-    return ++seq_;
-  }
-  void heartbeat() override {}
-  hal::RobotStatus status() override {
-    update();
-    hal::RobotStatus s;
-    s.sequence = seq_;
-    s.state = state_;
-    s.T_base_tool = pose_;
-    return s;
-  }
-  struct Spray {
-    double t;
-    Transform pose;
-  };
-  std::vector<Spray> sprays;
-  int aborts = 0;
-
- private:
-  void update() {
-    if (state_ == robot_link::State::kMoving) {
-      const double now = clock_.now();
-      const double f = t_end_ > t_start_ ? std::min(1.0, (now - t_start_) / (t_end_ - t_start_)) : 1.0;
-      pose_ = target_;
-      pose_.translation() = from_.translation() + f * (target_.translation() - from_.translation());
-      if (f >= 1.0) state_ = robot_link::State::kIdle;
-    } else if (state_ == robot_link::State::kSpraying && clock_.now() >= t_end_) {
-      state_ = robot_link::State::kIdle;
-    }
-  }
-  clock::Clock& clock_;
-  plan::RobotLimits limits_;
-  bool connected_ = false;
-  Transform pose_ = Transform::Identity(), from_ = Transform::Identity(), target_ = Transform::Identity();
-  double t_start_ = 0, t_end_ = 0;
-  std::uint16_t seq_ = 0;
-  robot_link::State state_ = robot_link::State::kIdle;
-};
-
-class MockSafety final : public SafetyIo {
- public:
-  explicit MockSafety(clock::Clock& clock) : clock_(clock) {}
-  bool estop_active() override { return estop_after >= 0 && clock_.now() >= estop_after; }
-  bool spray(double duration) override {
-    valve_open = true;
-    pulses++;
-    clock_.sleep_for(duration);
-    valve_open = false;
-    return true;
-  }
-  void valve_off() noexcept override {
-    valve_open = false;
-    offs++;
-  }
-  double estop_after = -1.0;
-  bool valve_open = false;
-  int pulses = 0, offs = 0;
-
- private:
-  clock::Clock& clock_;
-};
-
-// The panel translates along camL x at the line speed; tracking can drop out.
-class LineMotion final : public MotionSource {
- public:
-  LineMotion(clock::Clock& clock, double speed) : clock_(clock), speed_(speed) {}
-  std::optional<MotionEstimate> latest() override {
-    MotionEstimate e;
-    e.t = clock_.now();
-    e.M_camL = predict(e.t);
-    e.ok = !(lost_from >= 0 && e.t >= lost_from);
-    e.quality = e.ok ? 1.0 : 0.0;
-    e.features = 10;
-    return e;
-  }
-  Transform predict(double t) override {
-    Transform m = Transform::Identity();
-    m.translation() = Eigen::Vector3d(speed_ * t, 0, 0);
-    return m;
-  }
-  double lost_from = -1.0;
-
- private:
-  clock::Clock& clock_;
-  double speed_;
-};
+using testing::LineMotion;
+using testing::MockRobot;
+using testing::MockSafety;
 
 JobConfig config() {
   JobConfig c;

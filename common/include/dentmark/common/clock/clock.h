@@ -22,6 +22,12 @@ class Clock {
   // Real (wall) seconds that dt of this clock's time takes. OS-level waits (poll,
   // socket and serial timeouts) are in real time and use this to follow the clock.
   virtual double to_real(double dt) const { return dt; }
+  // Bracket computation whose duration is modelled rather than measured on a simulated
+  // clock (the twin's rendering and tracking of a frame): a scaled SimClock holds still
+  // from begin_work() to end_work(), so what the twin does does not depend on how fast
+  // the machine renders and tracks. Real clocks ignore them. Calls nest.
+  virtual void begin_work() {}
+  virtual void end_work() {}
 };
 
 // CLOCK_MONOTONIC: not affected by wall-clock steps (NTP, operator), unlike the
@@ -46,13 +52,22 @@ class SimClock final : public Clock {
   double to_real(double dt) const override;
   // Moves time forward by dt >= 0 and wakes sleepers whose deadline has come.
   void advance(double dt);
+  // Holds a scaled clock still until resume() (sleepers keep sleeping): a scene is set
+  // up, or a message exchanged, without its real seconds counting as simulated ones.
+  // Holds nest: time runs again when every pause() has had its resume().
+  void pause();
+  void resume();
+  void begin_work() override { pause(); }
+  void end_work() override { resume(); }
   double rate() const { return rate_; }
 
  private:
   double now_locked() const;
   const double rate_;
   double offset_;      // simulated time at real_start_, plus every advance()
-  double real_start_;  // real monotonic seconds when the clock was made
+  double real_start_;  // real monotonic seconds when the clock was made (or last resumed)
+  int holds_ = 0;      // pause()s not yet resumed
+  bool paused_ = false;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
 };

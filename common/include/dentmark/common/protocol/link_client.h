@@ -5,6 +5,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -25,6 +27,7 @@ struct ClientOptions {
   int attempts = 3;                            // connections tried before giving up
   std::chrono::milliseconds retry_delay{200};  // doubled after each failed attempt
   const HmacKey* key = nullptr;                // signs requests and requires signed replies
+  std::function<double()> clock;               // send_time source, s since the epoch (default: system clock)
 };
 
 class LinkClient {
@@ -38,6 +41,12 @@ class LinkClient {
   // on connection failures; throws LinkError after the last attempt, naming the
   // endpoint and the reason. A reply that fails to decode also throws.
   Decoded request(const Message& message);
+
+  // After a request that opened a subscription (docs/protocol.md §8): the next frame
+  // the edge pushes on this connection, or nullopt when none came within 'timeout'
+  // (the connection is then dropped). Throws LinkError when the connection fails or the
+  // frame does not decode.
+  std::optional<Decoded> receive(std::chrono::milliseconds timeout);
 
   // Payload digest of the last frame sent (what an Ack should echo).
   const Digest& last_digest() const { return last_digest_; }

@@ -81,7 +81,8 @@ struct Mark {
   bool operator==(const Mark&) const = default;
 };
 
-// Edge -> host: what was marked for one job, where and when.
+// Edge -> host: what was marked for one job, where and when. Host -> edge (minor 1), a
+// MarkReport without records subscribes to that job's reports (docs/protocol.md §8).
 struct MarkReport {
   std::uint64_t job_id = 0;
   std::vector<Mark> marks;
@@ -98,7 +99,7 @@ enum class EdgeState : std::uint8_t {
   kSafe = 5
 };
 
-// Edge -> host heartbeat.
+// Edge -> host heartbeat. Host -> edge (minor 1), any Status frame asks for the edge's.
 struct Status {
   EdgeState state = EdgeState::kIdle;
   std::uint32_t fault_bits = 0;  // see docs/protocol.md (bit 0 e-stop, 1 robot, 2 camera, 3 tracking, 4 link)
@@ -107,6 +108,10 @@ struct Status {
   std::uint8_t protocol_major = 0;
   std::uint8_t protocol_minor = 0;
   double uptime = 0.0;  // s since the daemon started
+  // Since minor 1 (0 in frames of minor 0): defects in the current or last job, and how
+  // many of them have a MarkReport record so far.
+  std::uint32_t defects_total = 0;
+  std::uint32_t defects_reported = 0;
 
   bool operator==(const Status&) const = default;
 };

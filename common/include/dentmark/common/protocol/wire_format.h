@@ -20,7 +20,7 @@ namespace wire {
 
 inline constexpr std::array<std::uint8_t, 4> kMagic{'D', 'M', 'K', 'L'};
 inline constexpr std::uint8_t kMajor = 1;
-inline constexpr std::uint8_t kMinor = 0;
+inline constexpr std::uint8_t kMinor = 1;  // 1.1: Status appends the job's progress
 
 inline constexpr std::size_t kHeaderSize = 32;
 inline constexpr std::size_t kHmacSize = 32;  // HMAC-SHA-256

@@ -69,6 +69,7 @@ inline constexpr std::uint16_t kWorkspace = 1u << 0;      // target outside the 
 inline constexpr std::uint16_t kHeartbeatLost = 1u << 1;  // heartbeat stale: motion and sprayer stopped
 inline constexpr std::uint16_t kBadCommand = 1u << 2;     // unknown command word or bad parameter
 inline constexpr std::uint16_t kAborted = 1u << 3;        // stopped by Command::kAbort
+inline constexpr std::uint16_t kDrive = 1u << 4;          // the robot's own fault (drive, collision): stopped
 }  // namespace fault
 
 const char* to_string(Command c);

@@ -30,11 +30,15 @@ struct GpioLine {
   bool active_low = false;
 };
 
+// chardev: the kernel's GPIO character device (libgpiod); sim: simulated lines (the twin).
+enum class GpioBackend { kChardev, kSim };
+
 struct GpioConfig {
+  GpioBackend backend = GpioBackend::kChardev;
   std::string chip_label;  // optional: restricts the search to the chip with this label
   GpioLine sprayer_valve;  // output; safe value is inactive (valve closed)
   GpioLine estop;          // input; active means stop
-  GpioLine part_present;   // input
+  GpioLine part_present;   // input; name empty when the board has no part sensor
 };
 
 enum class CameraBackend { kV4l2, kLibcamera, kReplay, kSim };

@@ -17,11 +17,12 @@
 namespace dentmark::hal {
 
 struct HalChoice {
-  bool simulate = false;          // every device simulated, whatever the board says
-  std::string gpio_record;        // simulated GPIO: file recording every edge (empty: memory only)
-  SimCamera::Render render;       // simulated cameras: renders a frame for a time (required for sim)
-  double sim_frame_period = 0.2;  // s (the paper's 5 Hz)
-  double sim_right_offset = 0.0;  // s, right sensor's trigger offset
+  bool simulate = false;           // every device simulated, whatever the board says
+  std::string gpio_record;         // simulated GPIO: file recording every edge (empty: memory only)
+  SimCamera::Render render;        // simulated cameras: renders a frame for a time (required for sim)
+  SimCamera::Render render_right;  // the right camera's, when it differs (empty: 'render' for both)
+  double sim_frame_period = 0.2;   // s (the paper's 5 Hz)
+  double sim_right_offset = 0.0;   // s, right sensor's trigger offset
 };
 
 // libgpiod on the board's chip (found by label), or a simulated chip with the board's line names.

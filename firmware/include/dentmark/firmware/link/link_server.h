@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 
 #include "dentmark/common/protocol/codec.h"
 #include "dentmark/common/protocol/replay_guard.h"
@@ -41,10 +42,27 @@ struct ServerOptions {
   std::function<double()> clock;  // s since the Unix epoch; the system clock when empty
 };
 
+// Sends one message on a connection; false when the peer is gone or the server stops.
+using Push = std::function<bool(const protocol::Message&)>;
+
+// A handler's answer: the reply, and optionally a stream that keeps the connection to
+// push more messages (a report subscription, docs/protocol.md §8). 'follow' runs on
+// the connection's thread after the reply; the connection closes when it returns. It
+// must return soon after a push fails.
+struct Reply {
+  // A plain reply (any message type converts).
+  template <typename M>
+  requires std::is_constructible_v<protocol::Message, M> Reply(M m)
+      : message(std::move(m)) {}  // NOLINT(google-explicit-constructor)
+  Reply(protocol::Message m, std::function<void(const Push&)> f)
+      : message(std::move(m)), follow(std::move(f)) {}
+  protocol::Message message;
+  std::function<void(const Push&)> follow;
+};
+
 // Handles one accepted frame (decoded, authenticated and not replayed) and returns
 // the reply. Called from connection threads: must be thread-safe.
-using Handler =
-    std::function<protocol::Message(const protocol::Decoded& decoded, std::span<const std::uint8_t> frame)>;
+using Handler = std::function<Reply(const protocol::Decoded& decoded, std::span<const std::uint8_t> frame)>;
 
 struct ServerStats {
   std::atomic<std::uint64_t> connections{0};
@@ -95,6 +113,7 @@ class LinkServer {
   std::atomic<std::uint64_t> sequence_;
   ServerStats stats_;
   bool running_ = false;
+  std::atomic<bool> stopping_{false};
 };
 
 }  // namespace dentmark::link

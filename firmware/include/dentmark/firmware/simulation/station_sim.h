@@ -1,9 +1,11 @@
 #pragma once
-// One marking scenario of the simulated station, end to end and faster than real time:
-// the robot simulator serves Modbus on loopback and the station drives it through the
-// real Modbus client; the cameras render the moving door (with the robot's arm in
-// view) and the tracker follows it from the scan onwards; the job runner marks the
-// defect list; every spray is compared with where the defect truly was at that instant.
+// One marking scenario of the station's twin, end to end: the edge daemon itself
+// (daemon::EdgeDaemon, as `dentmark-edge run` wires it) with a simulation board
+// (boards/sim/twin): simulated GPIO, cameras rendering the moving door with the robot's
+// arm in view, and the robot simulator over Modbus TCP on loopback. The host's side
+// sends the defect list over TCP with the same code as `dentmark send --wait`
+// (protocol::JobSession) and collects the MarkReports; every spray is compared with
+// where the defect truly was at that instant.
 
 #include <Eigen/Core>
 #include <string>
@@ -38,7 +40,7 @@ struct MarkError {
 
 struct ScenarioResult {
   ScenarioOptions options;
-  protocol::MarkReport report;
+  protocol::MarkReport report;    // as the host received it, in the list's defect order
   std::vector<MarkError> errors;  // one per spray matched to a true defect
   int defects_sent = 0;
   int marked = 0;
@@ -55,14 +57,41 @@ struct ScenarioResult {
   double sim_seconds = 0.0, real_seconds = 0.0;
 };
 
+// A fault the twin injects, `after` seconds after marking starts.
+enum class FaultKind {
+  kEstop,          // the e-stop line goes active
+  kRobotLink,      // the robot stops answering Modbus for good
+  kRobotLinkBlip,  // the robot drops one request (connection closed), then answers again
+  kRobotFault,     // the robot reports its own fault (drive) and stops
+  kCamera,         // the cameras stop delivering frames
+  kTrackingLost,   // the panel leaves the cameras' view
+};
+struct Fault {
+  FaultKind kind = FaultKind::kEstop;
+  double after = 0.0;  // s after marking starts
+};
+// "estop@2.5", "robot-link@1", "robot-blip@1", "robot-fault@3", "camera@2", "tracking@2".
+// Throws std::invalid_argument naming what is wrong.
+Fault parse_fault(const std::string& text);
+const char* to_string(FaultKind kind);
+
 struct SimulationOptions {
   double clock_rate = 1.0;   // simulated seconds per real second (the tracker must keep up)
   bool arm_occludes = true;  // render the robot's arm in the cameras' view
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
   bool truth_motion = false;
-  // Press the e-stop this many seconds after marking starts (< 0: never).
-  double estop_after = -1.0;
+  // Faults injected while the station marks (dentmark-edge simulate --fault KIND@T).
+  std::vector<Fault> faults;
+  std::string board_file;  // the twin's board (empty: boards/sim/twin/board.yaml of this source tree)
+  // Serve an outside host (`dentmark send --wait`) on this port (0: any, logged)
+  // instead of sending the list from inside. Time stands still until the list comes;
+  // then the twin's clock jumps over the scan's age (send_time − scan_time) and the line
+  // runs on: the list arrives after the panel has moved, as on a real line (the daemon
+  // keeps 10 s of camera pairs to start from).
+  bool serve = false;
+  int serve_port = 0;
+  double serve_timeout = 300.0;  // s (real) to wait for the host's list
 };
 
 // Runs one scenario. Throws std::runtime_error when the simulation itself cannot run

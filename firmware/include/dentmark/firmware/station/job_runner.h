@@ -36,6 +36,18 @@ class SafetyIo {
   virtual void valve_off() noexcept = 0;
 };
 
+// Told of every step of a job that must outlive a crash (the daemon's journal) or
+// reach the host as it happens. Both are called on the job's thread.
+class JobEvents {
+ public:
+  virtual ~JobEvents() = default;
+  // Just before the valve opens for a defect. Once this returns the defect counts as
+  // possibly sprayed: it is never sprayed again, even after a restart.
+  virtual void spraying(std::uint32_t /*defect_id*/) {}
+  // A defect's outcome, as soon as it is decided.
+  virtual void reported(const protocol::Mark& /*mark*/) {}
+};
+
 struct JobConfig {
   plan::PlannerConfig planner;
   double approach_distance = 0.04;     // m back along the tool axis before the final approach
@@ -47,6 +59,7 @@ struct JobConfig {
   double tracking_timeout = 5.0;     // s to wait for tracking before giving up on a defect
   double move_timeout_margin = 2.0;  // s allowed beyond the planned move time
   double poll_period = 0.01;         // s between status polls
+  double robot_reset_timeout = 2.0;  // s for the robot to clear a stop latched while idle
   double epoch_offset = 0.0;         // s: clock time + epoch_offset = Unix time (for reports)
 };
 
@@ -55,8 +68,9 @@ class JobRunner {
   JobRunner(hal::Robot& robot, SafetyIo& safety, MotionSource& motion, clock::Clock& clock, JobConfig config);
 
   // Marks the list's dent, bump and hole defects. t_scan is the scan's time on the
-  // clock; the motion source must cover it. Never throws: failures are in the report.
-  protocol::MarkReport run(const protocol::DefectList& list, double t_scan);
+  // clock; the motion source must cover it. Never throws: failures are in the report,
+  // and each outcome is also passed to 'events' as it is decided.
+  protocol::MarkReport run(const protocol::DefectList& list, double t_scan, JobEvents* events = nullptr);
 
   protocol::EdgeState state() const { return state_.load(); }
   // Asks a running job to stop after the current step (thread-safe).
@@ -79,6 +93,7 @@ class JobRunner {
   std::atomic<protocol::EdgeState> state_{protocol::EdgeState::kIdle};
   std::atomic<bool> cancelled_{false};
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
+  JobEvents* events_ = nullptr;  // during run()
 };
 
 }  // namespace dentmark::station

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/station/motion_source.h"
 #include "dentmark/firmware/track/tracker.h"
 
@@ -35,8 +36,11 @@ class TrackingMotionSource final : public MotionSource {
  public:
   // Starts the tracker on the source's first frame with rough camR seeds; throws
   // track::TrackError when that fails. Then tracks in a thread until stop().
+  // 'clock' (may be null) brackets each frame's tracking with begin_work()/end_work():
+  // on the twin's clock tracking then takes no simulated time (clock.h).
   TrackingMotionSource(track::StereoCalibration calibration, std::vector<cv::Point2f> seeds_right,
-                       StereoFrameSource frames, track::TrackerOptions options = {});
+                       StereoFrameSource frames, track::TrackerOptions options = {},
+                       clock::Clock* clock = nullptr);
   ~TrackingMotionSource() override;
   TrackingMotionSource(const TrackingMotionSource&) = delete;
   TrackingMotionSource& operator=(const TrackingMotionSource&) = delete;
@@ -55,6 +59,7 @@ class TrackingMotionSource final : public MotionSource {
 
   track::Tracker tracker_;
   StereoFrameSource source_;
+  clock::Clock* clock_ = nullptr;
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> ended_{false};

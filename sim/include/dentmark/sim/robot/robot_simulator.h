@@ -91,6 +91,9 @@ class RobotSimulator {
   void inject_drop(int n);                           // close the connection instead of replying
   void inject_delay(double real_seconds, int n);     // reply late (real time: client timeouts are real)
   void inject_exception(int exception_code, int n);  // Modbus exception reply (e.g. 4 = server failure)
+  // The robot's own fault now (a drive fault): it brakes, closes the sprayer and reports
+  // state stopped with fault::kDrive until a reset.
+  void inject_drive_fault();
 
   // Observation (thread-safe snapshots).
   std::vector<TipSample> trajectory() const;

@@ -61,7 +61,7 @@ class Gpio {
 struct GpioLines {
   std::unique_ptr<OutputLine> sprayer_valve;
   std::unique_ptr<InputLine> estop;
-  std::unique_ptr<InputLine> part_present;
+  std::unique_ptr<InputLine> part_present;  // null when the board has no part sensor
 };
 GpioLines request_board_lines(Gpio& gpio, const board::GpioConfig& config);
 

@@ -1,0 +1,101 @@
+#include "dentmark/common/atomic_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+namespace dentmark::files {
+namespace {
+
+std::string system_reason() {
+  return std::strerror(errno);
+}
+
+bool write_whole(int fd, const std::uint8_t* data, std::size_t size) {
+  std::size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::write(fd, data + done, size - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+// The rename is only durable once the folder's entry is on the disk.
+void sync_folder(const std::filesystem::path& path) {
+  const std::filesystem::path folder = path.has_parent_path() ? path.parent_path() : ".";
+  const int dfd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd < 0) return;  // not fatal: the data itself is synced
+  ::fsync(dfd);
+  ::close(dfd);
+}
+
+}  // namespace
+
+FileError::FileError(const std::filesystem::path& path, const std::string& problem)
+    : std::runtime_error(path.string() + ": " + problem) {}
+
+void write_atomically(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+  // A temporary name in the same folder, so that rename() stays on one file system.
+  std::random_device rd;
+  std::filesystem::path tmp = path;
+  tmp += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(rd());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw FileError(path, "cannot create a temporary file: " + system_reason());
+  if (!write_whole(fd, bytes.data(), bytes.size()) || ::fsync(fd) != 0) {
+    const std::string why = system_reason();
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw FileError(path, "write failed: " + why);
+  }
+  if (::close(fd) != 0) {
+    const std::string why = system_reason();
+    ::unlink(tmp.c_str());
+    throw FileError(path, "write failed: " + why);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = system_reason();
+    ::unlink(tmp.c_str());
+    throw FileError(path, "rename failed: " + why);
+  }
+  sync_folder(path);
+}
+
+void write_atomically(const std::filesystem::path& path, std::string_view text) {
+  write_atomically(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
+std::string read_all(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FileError(path, "cannot open: " + system_reason());
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (in.bad()) throw FileError(path, "read failed");
+  return s.str();
+}
+
+AppendLog::AppendLog(const std::filesystem::path& path) : path_(path) {
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw FileError(path, "cannot open for appending: " + system_reason());
+  sync_folder(path);
+}
+
+AppendLog::~AppendLog() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void AppendLog::append(std::string_view line) {
+  std::string record(line);
+  record += '\n';
+  if (!write_whole(fd_, reinterpret_cast<const std::uint8_t*>(record.data()), record.size()) ||
+      ::fdatasync(fd_) != 0)
+    throw FileError(path_, "append failed: " + system_reason());
+}
+
+}  // namespace dentmark::files

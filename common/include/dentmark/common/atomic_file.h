@@ -1,0 +1,47 @@
+#pragma once
+// Files that are either wholly there or not at all: every writer of a result, a job or
+// a calibration goes through here. The bytes go to a temporary file in the same
+// folder, are flushed to the disk (fsync), and the file is renamed over the target,
+// then the folder is flushed too, so that a power cut leaves the old file or the new
+// one, never half of one. Append-only logs (journals) use AppendLog, which flushes
+// every record before it returns.
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace dentmark::files {
+
+class FileError : public std::runtime_error {
+ public:
+  FileError(const std::filesystem::path& path, const std::string& problem);
+};
+
+// Replaces 'path' with 'bytes' atomically. Throws FileError naming the file and the
+// system's reason; the target is untouched and no temporary file is left then.
+void write_atomically(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
+void write_atomically(const std::filesystem::path& path, std::string_view text);
+
+// The whole file; throws FileError naming the file when it cannot be read.
+std::string read_all(const std::filesystem::path& path);
+
+// An append-only text log: each append() writes one line and fsyncs before returning,
+// so a line that was appended survives a crash or power cut.
+class AppendLog {
+ public:
+  explicit AppendLog(const std::filesystem::path& path);  // creates the file when missing
+  ~AppendLog();
+  AppendLog(const AppendLog&) = delete;
+  AppendLog& operator=(const AppendLog&) = delete;
+  void append(std::string_view line);  // without the newline
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+  int fd_ = -1;
+};
+
+}  // namespace dentmark::files
