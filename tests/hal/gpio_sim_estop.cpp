@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -90,7 +91,7 @@ int run(const std::string& board_path, int trials) {
   const LevelReader valve(chip.attribute(g.sprayer_valve.name, "value"));
   const auto valve_active = [&] { return valve.high() != g.sprayer_valve.active_low; };
 
-  std::vector<double> latency, from_write;
+  std::vector<double> latency, from_write, longest_gap;  // per trial
   for (int k = 0; k < trials; ++k) {
     supervisor.kick();
     if (!supervisor.reset() || !supervisor.open_valve()) {
@@ -102,16 +103,34 @@ int run(const std::string& board_path, int trials) {
       std::printf("fail: trial %d: valve open in software but its line reads inactive\n", k);
       return 1;
     }
+    // A watcher thread polls the valve line every 0.2 ms from before the edge, so that
+    // the reading does not wait for the 'pull' write to return (with one CPU the
+    // interrupt, the supervisor and the write's remainder share it). A busy loop would
+    // take the CPU the supervisor needs. Its longest interval between two polls says how
+    // long it did not run; under emulation that includes the host not running the
+    // emulator.
+    double t1 = 0.0, gap = 0.0;
+    std::atomic<bool> started{false};
+    std::thread watcher([&] {
+      const double begin = now();
+      double last = begin;
+      started = true;
+      for (;;) {
+        const bool active = valve_active();
+        const double t = now();
+        gap = std::max(gap, t - last);
+        last = t;
+        if (!active || t - begin > 2.0) break;
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
+      t1 = last;
+    });
+    while (!started) std::this_thread::yield();
     const double t0 = now();
     press(chip, g.estop, true);
-    double t1 = now();
-    // Polls every 0.2 ms: a busy loop would take the CPU the supervisor needs.
-    while (valve_active() && t1 - t0 < 1.0) {
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-      t1 = now();
-    }
+    watcher.join();
     if (valve_active()) {
-      std::printf("fail: trial %d: valve still open 1 s after the e-stop edge\n", k);
+      std::printf("fail: trial %d: valve still open 2 s after the e-stop edge\n", k);
       return 1;
     }
     from_write.push_back(t1 - t0);
@@ -130,6 +149,7 @@ int run(const std::string& board_path, int trials) {
       return 1;
     }
     latency.push_back(t1 - edge);
+    longest_gap.push_back(gap);
     press(chip, g.estop, false);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     if (valve_active() || supervisor.open_valve()) {
@@ -149,6 +169,9 @@ int run(const std::string& board_path, int trials) {
       "e-stop edge -> valve line low: median %.3f ms, 90th percentile %.3f ms, max %.3f ms over %d trials "
       "(limit %.0f ms)\n",
       1e3 * median, 1e3 * p90, 1e3 * worst, trials, 1e3 * kLimit);
+  const auto w = static_cast<std::size_t>(std::max_element(latency.begin(), latency.end()) - latency.begin());
+  std::printf("slowest trial: %.3f ms; its longest interval between two polls (0.2 ms apart): %.3f ms\n",
+              1e3 * latency[w], 1e3 * longest_gap[w]);
   if (worst > kLimit) {
     std::printf("fail: %ld of %d trials over %.0f ms (max %.3f ms)\n", static_cast<long>(over), trials,
                 1e3 * kLimit, 1e3 * worst);
