@@ -51,7 +51,7 @@ int run(const std::string& address) {
     config.host = address.substr(0, colon);
     config.port = std::stoi(address.substr(colon + 1));
   }
-  config.timeout = 0.5;  // s per request: the guest is emulated
+  config.timeout = 1.0;  // s per request: the guest is emulated, on a host that may be busy
   dentmark::clock::MonotonicClock clock;
   dentmark::hal::ModbusRobot robot(config, clock);
   robot.connect();
