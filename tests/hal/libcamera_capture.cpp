@@ -5,21 +5,27 @@
 
 #include "dentmark/firmware/hal/camera/libcamera_camera.h"
 
-int main() {
+// Usage: libcamera_capture [WIDTHxHEIGHT]   (default 640x480; frames must have that size)
+int main(int argc, char** argv) {
+  int width = 640, height = 480;
+  if (argc > 1 && std::sscanf(argv[1], "%dx%d", &width, &height) != 2) {
+    std::printf("fail: size '%s' is not WIDTHxHEIGHT\n", argv[1]);
+    return 2;
+  }
   try {
     const auto ids = dentmark::hal::list_libcamera_cameras();
     if (ids.empty()) {
       std::puts("skip: libcamera sees no camera");
       return 77;
     }
-    dentmark::hal::LibcameraCamera cam(ids.front(), {640, 480});
+    dentmark::hal::LibcameraCamera cam(ids.front(), {width, height});
     cam.start();
     double last = -1.0;
     int frames = 0;
     for (int i = 0; i < 20 && frames < 5; ++i) {
       const auto f = cam.grab(2.0);
       if (!f) continue;
-      if (f->image.cols != 640 || f->image.rows != 480 || !(f->time > last)) {
+      if (f->image.cols != width || f->image.rows != height || !(f->time > last)) {
         std::puts("fail: wrong frame size or non-increasing time");
         return 1;
       }
@@ -31,7 +37,7 @@ int main() {
       std::puts("fail: fewer than 5 frames in 20 waits of 2 s");
       return 1;
     }
-    std::printf("pass: %d frames from %s\n", frames, ids.front().c_str());
+    std::printf("pass: %d frames of %dx%d from %s\n", frames, width, height, ids.front().c_str());
     return 0;
   } catch (const std::exception& e) {
     std::printf("fail: %s\n", e.what());

@@ -113,6 +113,29 @@ TEST(V4l2Pixels, LumaFromPackedAndPlanarFormatsWithStridePadding) {
   EXPECT_EQ(fourcc_name(V4L2_PIX_FMT_YUYV), "YUYV");
 }
 
+TEST(V4l2Pixels, LumaFromPackedRgbIsBt601InBothByteOrders) {
+  const int w = 5, h = 4;
+  const std::uint32_t stride = 3 * w + 1;  // padded rows
+  std::mt19937 rng(7);
+  std::vector<std::uint8_t> rgb(stride * h, 0xEE);
+  for (int y = 0; y < h; ++y)
+    for (int i = 0; i < 3 * w; ++i) rgb[y * stride + i] = static_cast<std::uint8_t>(rng() % 256);
+  std::vector<std::uint8_t> bgr = rgb;  // the same pixels with red and blue swapped
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) std::swap(bgr[y * stride + 3 * x], bgr[y * stride + 3 * x + 2]);
+  const cv::Mat a = luma_from_buffer(rgb.data(), rgb.size(), V4L2_PIX_FMT_RGB24, w, h, stride);
+  const cv::Mat b = luma_from_buffer(bgr.data(), bgr.size(), V4L2_PIX_FMT_BGR24, w, h, stride);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::uint8_t* p = &rgb[y * stride + 3 * x];
+      const double luma = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];  // ITU-R BT.601
+      EXPECT_NEAR(a.at<std::uint8_t>(y, x), luma, 1.0) << x << "," << y;
+      EXPECT_EQ(a.at<std::uint8_t>(y, x), b.at<std::uint8_t>(y, x));
+    }
+  EXPECT_THROW(luma_from_buffer(rgb.data(), stride * (h - 1) + 3 * w - 1, V4L2_PIX_FMT_RGB24, w, h, stride),
+               CameraError);
+}
+
 TEST(V4l2Camera, NonDeviceGivesAClearError) {
   V4l2Camera cam("/dev/null", {640, 480});
   try {

@@ -12,12 +12,16 @@ namespace dentmark::hal {
 namespace {
 
 // libcamera pixel formats whose plane 0 we can read as luma, with the V4L2 name of that layout.
+// libcamera names packed RGB by DRM fourcc, least significant byte last: RGB888 is
+// B, G, R in memory (V4L2 BGR24), BGR888 is R, G, B (V4L2 RGB24).
 std::uint32_t luma_layout(const libcamera::PixelFormat& f) {
   if (f == libcamera::formats::R8) return V4L2_PIX_FMT_GREY;
   if (f == libcamera::formats::YUYV) return V4L2_PIX_FMT_YUYV;
   if (f == libcamera::formats::UYVY) return V4L2_PIX_FMT_UYVY;
   if (f == libcamera::formats::NV12) return V4L2_PIX_FMT_NV12;
   if (f == libcamera::formats::NV21) return V4L2_PIX_FMT_NV21;
+  if (f == libcamera::formats::RGB888) return V4L2_PIX_FMT_BGR24;
+  if (f == libcamera::formats::BGR888) return V4L2_PIX_FMT_RGB24;
   return 0;
 }
 
@@ -58,10 +62,12 @@ void LibcameraCamera::start() {
     libcamera::StreamConfiguration& sc = config->at(0);
     sc.size = libcamera::Size(static_cast<unsigned>(size_.width), static_cast<unsigned>(size_.height));
     sc.bufferCount = want_buffers_;
-    // Ask for formats with a luma plane, best first; keep the first the pipeline accepts unchanged.
-    const libcamera::PixelFormat wanted[] = {libcamera::formats::R8, libcamera::formats::NV12,
-                                             libcamera::formats::YUYV, libcamera::formats::NV21,
-                                             libcamera::formats::UYVY};
+    // Ask for formats with a luma plane, best first, then packed RGB (converted to luma;
+    // vimc's pipeline gives only that); keep the first the pipeline accepts unchanged.
+    const libcamera::PixelFormat wanted[] = {libcamera::formats::R8,    libcamera::formats::NV12,
+                                             libcamera::formats::YUYV,  libcamera::formats::NV21,
+                                             libcamera::formats::UYVY,  libcamera::formats::RGB888,
+                                             libcamera::formats::BGR888};
     bool ok = false;
     for (const auto& f : wanted) {
       sc.pixelFormat = f;

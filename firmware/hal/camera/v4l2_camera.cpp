@@ -45,6 +45,7 @@ cv::Mat luma_from_buffer(const std::uint8_t* data, std::size_t bytesused, std::u
                          int height, std::uint32_t bytesperline) {
   if (width <= 0 || height <= 0) throw CameraError("frame size must be positive");
   int bpp = 0, offset = 0;  // bytes per pixel in the luma plane, offset of Y within a pixel
+  int r = -1, b = -1;       // packed RGB: byte offsets of red and blue (green is 1)
   switch (fourcc) {
     case V4L2_PIX_FMT_GREY:
     case V4L2_PIX_FMT_NV12:
@@ -57,6 +58,12 @@ cv::Mat luma_from_buffer(const std::uint8_t* data, std::size_t bytesused, std::u
     case V4L2_PIX_FMT_UYVY:
       bpp = 2;
       offset = 1;
+      break;
+    case V4L2_PIX_FMT_RGB24:
+      bpp = 3, r = 0, b = 2;
+      break;
+    case V4L2_PIX_FMT_BGR24:
+      bpp = 3, r = 2, b = 0;
       break;
     default:
       throw CameraError("pixel format " + fourcc_name(fourcc) + " is not supported");
@@ -75,6 +82,13 @@ cv::Mat luma_from_buffer(const std::uint8_t* data, std::size_t bytesused, std::u
     std::uint8_t* dst = out.ptr<std::uint8_t>(y);
     if (bpp == 1) {
       std::memcpy(dst, row, static_cast<std::size_t>(width));
+    } else if (bpp == 3) {
+      // ITU-R BT.601 luma, Y = 0.299 R + 0.587 G + 0.114 B, in 8-bit fixed point
+      // (weights 77, 150, 29 of 256, rounded), as OpenCV's RGB->GRAY.
+      for (int x = 0; x < width; ++x) {
+        const std::uint8_t* p = row + 3 * x;
+        dst[x] = static_cast<std::uint8_t>((77 * p[r] + 150 * p[1] + 29 * p[b] + 128) >> 8);
+      }
     } else {
       for (int x = 0; x < width; ++x) dst[x] = row[2 * x + offset];
     }

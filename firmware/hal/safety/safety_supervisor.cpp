@@ -152,7 +152,10 @@ void SafetySupervisor::run() {
       // Blocks until an edge or the poll period: the e-stop is handled as the edge
       // arrives, not at the next poll.
       const auto ev = estop_->wait_event(options_.poll_period);
-      if (ev && ev->active) latch(SafeReason::kEstop);
+      if (ev && ev->active) {
+        estop_edge_time_.store(ev->time);
+        latch(SafeReason::kEstop);
+      }
     } else {
       std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_period));
     }

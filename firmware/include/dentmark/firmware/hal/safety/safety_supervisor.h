@@ -64,6 +64,9 @@ class SafetySupervisor {
   bool reset();
   bool latched() const { return reason_.load() != SafeReason::kNone; }
   SafeReason reason() const { return reason_.load(); }
+  // Time of the last e-stop activation edge the supervisor acted on, as the input
+  // line stamped it (GpiodGpio: the kernel's CLOCK_MONOTONIC event time); < 0 before any.
+  double estop_edge_time() const { return estop_edge_time_.load(); }
 
   // Installs the process-wide signal, terminate and atexit handlers (idempotent).
   static void install_process_guards();
@@ -81,6 +84,7 @@ class SafetySupervisor {
   std::mutex mutex_;  // serialises valve changes between the control loop and the thread
   std::atomic<SafeReason> reason_{SafeReason::kNone};
   std::atomic<double> last_kick_;
+  std::atomic<double> estop_edge_time_{-1.0};
   double pulse_end_ = -1.0;  // clock time to close a pulse; < 0: none (mutex_)
   std::atomic<bool> stop_{false};
   std::thread thread_;
