@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace dentmark::clock {
 namespace {
@@ -33,9 +35,11 @@ void MonotonicClock::sleep_until(double t) {
   }
 }
 
-SimClock::SimClock(double rate, double start) : rate_(rate), offset_(start), real_start_(real_monotonic()) {
+SimClock::SimClock(double rate, double start, bool paused)
+    : rate_(rate), offset_(start), real_start_(real_monotonic()) {
   if (!(rate >= 0.0) || !std::isfinite(rate))
     throw std::invalid_argument("SimClock: rate must be finite and >= 0");
+  if (paused && rate > 0.0) holds_ = 1, paused_ = true;
 }
 
 double SimClock::now_locked() const {
@@ -75,8 +79,42 @@ void SimClock::advance(double dt) {
   changed_.notify_all();
 }
 
+namespace {
+
+// The work holds each thread has on each clock (a thread works with one or two clocks).
+int& work_holds(const SimClock* clock) {
+  thread_local std::vector<std::pair<const SimClock*, int>> holds;
+  for (auto& [c, n] : holds)
+    if (c == clock) return n;
+  holds.emplace_back(clock, 0);
+  return holds.back().second;
+}
+
+}  // namespace
+
+void SimClock::begin_work() {
+  ++work_holds(this);
+  pause();
+}
+
+void SimClock::end_work() {
+  int& mine = work_holds(this);
+  if (mine == 0) return;
+  --mine;
+  resume();
+}
+
 void SimClock::sleep_until(double t) {
   if (!std::isfinite(t)) throw std::invalid_argument("SimClock::sleep_until: deadline is not finite");
+  // This thread's work holds lapse while it sleeps, and return when it wakes.
+  int& mine = work_holds(this);
+  const int held = mine;
+  for (; mine > 0; --mine) resume();
+  wait_until(t);
+  for (; mine < held; ++mine) pause();
+}
+
+void SimClock::wait_until(double t) {
   std::unique_lock<std::mutex> lock(mutex_);
   if (rate_ == 0.0) {
     if (t > offset_) offset_ = t;

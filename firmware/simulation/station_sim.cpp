@@ -390,11 +390,11 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   board::BoardConfig board = twin_board(sim, scenario, cell);
   const double slow = std::max(1.0, sim.clock_rate);
 
-  clock::SimClock clock(sim.clock_rate);
-  // Time stands still while the station is set up and the list goes out: the scan is at
-  // t = 0 and the list arrives then (a fast clock would otherwise turn milliseconds of
-  // setup and loopback latency into millimetres of line travel).
-  clock.pause();
+  // Time stands still from the start while the station is set up and the list goes out:
+  // the scan is at t = 0 exactly, the cameras take their first frame then, and the list
+  // arrives then (a fast clock would otherwise turn milliseconds of setup and loopback
+  // latency into millimetres of line travel).
+  clock::SimClock clock(sim.clock_rate, 0.0, /*paused=*/true);
   std::atomic<bool> held{true};
   const auto start_time = [&] {
     if (held.exchange(false)) clock.resume();

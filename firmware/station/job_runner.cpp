@@ -142,7 +142,11 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   const double duration = config_.planner.spray_duration;
   events_->spraying(target.id);
   const std::uint16_t seq = robot_.spray(duration);
-  if (!safety_.spray(duration)) throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};
+  if (!safety_.spray(duration)) {
+    // The supervisor latched safe during the pulse: say why (the e-stop, mostly).
+    if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop during the spray"};
+    throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};
+  }
   const double deadline = clock_.now() + duration + config_.move_timeout_margin;
   for (;;) {
     check_interlocks();

@@ -287,6 +287,13 @@ bool Station::wait_for_part(std::uint64_t job_id) {
 
 void Station::run_job(const Pending& job) {
   const std::uint64_t id = job.list.job_id;
+  // On a simulated clock the job's own work (planning, Modbus round trips) takes no
+  // time; time runs while the job waits (clock.h). Real clocks ignore this.
+  dev_.clock.begin_work();
+  struct EndWork {
+    clock::Clock& clock;
+    ~EndWork() { clock.end_work(); }
+  } end_work{dev_.clock};
   std::unique_ptr<JobJournal> journal;
   try {
     journal = store_.journal(id);

@@ -46,7 +46,9 @@ class MonotonicClock final : public Clock {
 // with several threads, each sleeper would move everyone's time).
 class SimClock final : public Clock {
  public:
-  explicit SimClock(double rate = 0.0, double start = 0.0);
+  // paused: the clock starts held at 'start' (one pause(), as if called at once), so
+  // that a scene set up before the first resume() sees time exactly at 'start'.
+  explicit SimClock(double rate = 0.0, double start = 0.0, bool paused = false);
   double now() const override;
   void sleep_until(double t) override;
   double to_real(double dt) const override;
@@ -54,15 +56,20 @@ class SimClock final : public Clock {
   void advance(double dt);
   // Holds a scaled clock still until resume() (sleepers keep sleeping): a scene is set
   // up, or a message exchanged, without its real seconds counting as simulated ones.
-  // Holds nest: time runs again when every pause() has had its resume().
+  // Holds nest: time runs again when every pause() has had its resume(). Any thread may
+  // resume another's pause.
   void pause();
   void resume();
-  void begin_work() override { pause(); }
-  void end_work() override { resume(); }
+  // A hold of the calling thread: it lapses while that thread sleeps on this clock and
+  // returns when it wakes, so a worker that holds the clock for all its work lets time
+  // run only while it waits.
+  void begin_work() override;
+  void end_work() override;
   double rate() const { return rate_; }
 
  private:
   double now_locked() const;
+  void wait_until(double t);
   const double rate_;
   double offset_;      // simulated time at real_start_, plus every advance()
   double real_start_;  // real monotonic seconds when the clock was made (or last resumed)
