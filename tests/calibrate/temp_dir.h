@@ -1,32 +1,8 @@
 #pragma once
-// A fresh folder under the system temp folder, removed with its contents.
+// The calibration tests' temporary folders: the tests' shared helper.
 
-#include <unistd.h>
-
-#include <filesystem>
-#include <random>
-#include <string>
+#include "../support/temp_dir.h"
 
 namespace dentmark::calibrate {
-
-class TempDir {
- public:
-  explicit TempDir(const std::string& tag) {
-    std::random_device rd;
-    path_ = std::filesystem::temp_directory_path() /
-            ("dentmark-" + tag + "-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
+using ::dentmark::test::TempDir;
 }  // namespace dentmark::calibrate

@@ -3,34 +3,16 @@
 
 #include <unistd.h>
 
-#include <atomic>
 #include <filesystem>
 #include <string>
 
+#include "../support/temp_dir.h"
 #include "dentmark/sim/stereo/sequence_writer.h"
 
 namespace dentmark::track::testing {
 
-// A temporary directory removed when it goes out of scope.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = std::filesystem::temp_directory_path() /
-            ("dentmark-track-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
+// A temporary directory removed when it goes out of scope (the tests' shared helper).
+using TempDir = dentmark::test::TempDir;
 
 // The station's geometry at half resolution (640 x 512, f = 870 px): the same angles
 // as 1280 x 1024 at f = 1740 px, a quarter of the pixels, so tests stay fast.
