@@ -58,6 +58,16 @@ struct SynthArgs {
   bool paper = false;
 };
 
+// The .dml for the edge box: the defects, stamped with the job, the panel model and
+// when the scan was taken.
+void write_defect_list(const DetectArgs& a, const detect::Detection& det) {
+  protocol::DefectList list = report::to_defect_list(det);
+  list.scan_time = a.scan_time.value_or(scan_file_time(a.scan));
+  list.job_id = a.job.value_or(static_cast<std::uint64_t>(std::llround(list.scan_time * 1e3)));
+  list.panel_id = a.panel;
+  protocol::write_dml(a.out, list);
+}
+
 int run_detect(const DetectArgs& a) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
@@ -129,13 +139,7 @@ int run_detect(const DetectArgs& a) {
   det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
   const auto t_detect = Clock::now();
   try {
-    if (!a.out.empty()) {
-      protocol::DefectList list = report::to_defect_list(det);
-      list.scan_time = a.scan_time.value_or(scan_file_time(a.scan));
-      list.job_id = a.job.value_or(static_cast<std::uint64_t>(std::llround(list.scan_time * 1e3)));
-      list.panel_id = a.panel;
-      protocol::write_dml(a.out, list);
-    }
+    if (!a.out.empty()) write_defect_list(a, det);
     report::SourceInfo src{a.scan, scan.input_points, mesh.triangle_count()};
     if (!a.json.empty()) {
       auto j = report::defects_to_json(det, src);
