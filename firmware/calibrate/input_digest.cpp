@@ -3,9 +3,7 @@
 #include <openssl/evp.h>
 
 #include <array>
-#include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <fstream>
 #include <memory>
 
@@ -45,15 +43,6 @@ std::string inputs_sha256(const std::string& settings, const std::vector<std::fi
     hex += b;
   }
   return hex;
-}
-
-std::string utc_now_iso8601() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char b[32];
-  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return b;
 }
 
 }  // namespace dentmark::calibrate

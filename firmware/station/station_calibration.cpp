@@ -1,27 +1,16 @@
 #include "dentmark/firmware/station/station_calibration.h"
 
 #include <cmath>
-#include <ctime>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
 
 #include "dentmark/common/atomic_file.h"
+#include "dentmark/common/utc_time.h"
 #include "dentmark/common/version.h"
 #include "dentmark/firmware/track/track_error.h"
 
 namespace dentmark::station {
 namespace fs = std::filesystem;
-
-namespace {
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-  return buf;
-}
-
-}  // namespace
 
 Transform load_transform(const fs::path& path, const std::string& name, double max_rms) {
   const std::string file = path.string();
@@ -76,7 +65,7 @@ void save_transform(const fs::path& path, const std::string& name, const Transfo
   cv::eigen2cv(e, m);
   out << name << m;
   out << "rms" << rms;
-  out << "date" << utc_now();
+  out << "date" << utc_now_iso8601();
   out << "tool_version" << std::string(kVersion);
   files::write_atomically(path, out.releaseAndGetString());
 }

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "dentmark/common/utc_time.h"
+
 namespace dentmark::calibrate {
 
 // Lower-case hex SHA-256 over, in order: 'settings', then for each file its name
@@ -13,7 +15,7 @@ namespace dentmark::calibrate {
 // Throws CalibrateError naming a file that cannot be read.
 std::string inputs_sha256(const std::string& settings, const std::vector<std::filesystem::path>& files);
 
-// The current time, UTC, ISO 8601 to the second ("2026-12-05T19:30:00Z").
-std::string utc_now_iso8601();
+// The time it was made: the project's one UTC stamp.
+using ::dentmark::utc_now_iso8601;
 
 }  // namespace dentmark::calibrate
