@@ -66,6 +66,52 @@ void press(const GpioSimChip& chip, const GpioLine& estop, bool pressed) {
   chip.pull(estop.name, pressed != estop.active_low);
 }
 
+// Prints the figures of all trials and judges them (0 pass, 1 fail).
+int judge(const std::vector<double>& latency, std::vector<double> from_write,
+          const std::vector<double>& longest_gap, int trials) {
+  std::sort(from_write.begin(), from_write.end());
+  std::printf("from before the 'pull' write -> valve line low: median %.3f ms, max %.3f ms\n",
+              1e3 * from_write[from_write.size() / 2], 1e3 * from_write.back());
+  std::vector<double> sorted = latency;
+  std::sort(sorted.begin(), sorted.end());
+  const double worst = sorted.back(), median = sorted[sorted.size() / 2];
+  const double p90 = sorted[(sorted.size() * 9) / 10];
+  std::printf(
+      "e-stop edge -> valve line low: median %.3f ms, 90th percentile %.3f ms, max %.3f ms over %d trials "
+      "(limit %.0f ms)\n",
+      1e3 * median, 1e3 * p90, 1e3 * worst, trials, 1e3 * kLimit);
+  const auto w = static_cast<std::size_t>(std::max_element(latency.begin(), latency.end()) - latency.begin());
+  std::printf("slowest trial: %.3f ms; its longest interval between two polls (0.2 ms apart): %.3f ms\n",
+              1e3 * latency[w], 1e3 * longest_gap[w]);
+  // A trial measures the firmware only while the watcher itself ran: where its polls
+  // stopped for longer than half the limit, the host was not running the emulator (the
+  // guest's own threads stood still with it) and the trial is reported, not judged.
+  // At least half the trials must be measured, so a host that never runs the guest
+  // fails instead of passing unmeasured.
+  int measured = 0, measured_over = 0;
+  double measured_worst = 0.0;
+  for (std::size_t i = 0; i < latency.size(); ++i) {
+    if (longest_gap[i] > 0.5 * kLimit) continue;
+    ++measured;
+    measured_worst = std::max(measured_worst, latency[i]);
+    measured_over += latency[i] > kLimit;
+  }
+  std::printf("measured trials (watcher never paused over %.0f ms): %d of %d, worst %.3f ms\n",
+              0.5e3 * kLimit, measured, trials, 1e3 * measured_worst);
+  if (2 * measured < trials) {
+    std::printf("fail: only %d of %d trials ran with the host running the guest; nothing to judge\n",
+                measured, trials);
+    return 1;
+  }
+  if (measured_over > 0) {
+    std::printf("fail: %d measured trials over %.0f ms (worst %.3f ms)\n", measured_over, 1e3 * kLimit,
+                1e3 * measured_worst);
+    return 1;
+  }
+  std::puts("pass");
+  return 0;
+}
+
 int run(const std::string& board_path, int trials) {
   if (!GpioSimChip::available()) {
     std::printf("skip: no %s (modprobe gpio-sim; the QEMU system tests load it)\n", GpioSimChip::kConfigfs);
@@ -158,47 +204,7 @@ int run(const std::string& board_path, int trials) {
       return 1;
     }
   }
-  std::sort(from_write.begin(), from_write.end());
-  std::printf("from before the 'pull' write -> valve line low: median %.3f ms, max %.3f ms\n",
-              1e3 * from_write[from_write.size() / 2], 1e3 * from_write.back());
-  std::vector<double> sorted = latency;
-  std::sort(sorted.begin(), sorted.end());
-  const double worst = sorted.back(), median = sorted[sorted.size() / 2];
-  const double p90 = sorted[(sorted.size() * 9) / 10];
-  std::printf(
-      "e-stop edge -> valve line low: median %.3f ms, 90th percentile %.3f ms, max %.3f ms over %d trials "
-      "(limit %.0f ms)\n",
-      1e3 * median, 1e3 * p90, 1e3 * worst, trials, 1e3 * kLimit);
-  const auto w = static_cast<std::size_t>(std::max_element(latency.begin(), latency.end()) - latency.begin());
-  std::printf("slowest trial: %.3f ms; its longest interval between two polls (0.2 ms apart): %.3f ms\n",
-              1e3 * latency[w], 1e3 * longest_gap[w]);
-  // A trial measures the firmware only while the watcher itself ran: where its polls
-  // stopped for longer than half the limit, the host was not running the emulator (the
-  // guest's own threads stood still with it) and the trial is reported, not judged.
-  // At least half the trials must be measured, so a host that never runs the guest
-  // fails instead of passing unmeasured.
-  int measured = 0, measured_over = 0;
-  double measured_worst = 0.0;
-  for (std::size_t i = 0; i < latency.size(); ++i) {
-    if (longest_gap[i] > 0.5 * kLimit) continue;
-    ++measured;
-    measured_worst = std::max(measured_worst, latency[i]);
-    measured_over += latency[i] > kLimit;
-  }
-  std::printf("measured trials (watcher never paused over %.0f ms): %d of %d, worst %.3f ms\n",
-              0.5e3 * kLimit, measured, trials, 1e3 * measured_worst);
-  if (2 * measured < trials) {
-    std::printf("fail: only %d of %d trials ran with the host running the guest; nothing to judge\n",
-                measured, trials);
-    return 1;
-  }
-  if (measured_over > 0) {
-    std::printf("fail: %d measured trials over %.0f ms (worst %.3f ms)\n", measured_over, 1e3 * kLimit,
-                1e3 * measured_worst);
-    return 1;
-  }
-  std::puts("pass");
-  return 0;
+  return judge(latency, from_write, longest_gap, trials);
 }
 
 }  // namespace
