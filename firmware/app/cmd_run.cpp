@@ -3,11 +3,11 @@
 // systemd its state (Type=notify: READY=1, WATCHDOG=1, STATUS=, STOPPING=1).
 #include <systemd/sd-daemon.h>
 
-#include <cstdlib>
 #include <memory>
 #include <string>
 
 #include "commands.h"
+#include "daemon_paths.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/hmac_key.h"
 #include "dentmark/common/version.h"
@@ -29,15 +29,6 @@ struct RunOptions {
   double replay_window = 30.0;
   int max_clients = 8;
 };
-
-std::string default_state_dir() {
-  // systemd's StateDirectory= may list several folders separated by ':'.
-  if (const char* s = std::getenv("STATE_DIRECTORY"); s && *s) {
-    const std::string all(s);
-    return all.substr(0, all.find(':'));
-  }
-  return "/var/lib/dentmark";
-}
 
 std::string status_line(const protocol::Status& s) {
   std::string line = std::string(protocol::to_string(s.state));
@@ -72,7 +63,7 @@ int run_daemon(const RunOptions& opt) {
     log::error(e.what());
     return 2;
   }
-  d.calibration_dir = opt.calibration_dir.empty() ? "/etc/dentmark/calibration" : opt.calibration_dir;
+  d.calibration_dir = opt.calibration_dir.empty() ? kDefaultCalibrationDir : opt.calibration_dir;
   d.state_dir = opt.state_dir.empty() ? default_state_dir() : opt.state_dir;
   d.key_file = opt.key_file;
   d.port = opt.port;

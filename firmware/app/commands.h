@@ -19,5 +19,7 @@ void register_teach(CLI::App& app);
 void register_simulate(CLI::App& app);
 // `dentmark-edge calibrate stereo|robot ...`: the station's calibration files.
 void register_calibrate(CLI::App& app);
+// `dentmark-edge selftest --board FILE ...`: the box's health check.
+void register_selftest(CLI::App& app);
 
 }  // namespace dentmark::edge

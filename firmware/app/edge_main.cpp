@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   dentmark::edge::register_teach(app);
   dentmark::edge::register_simulate(app);
   dentmark::edge::register_calibrate(app);
+  dentmark::edge::register_selftest(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -228,9 +228,7 @@ void JobRunner::start_robot() {
     // A stop the station itself caused (heartbeat pause between jobs, its own abort)
     // is cleared by starting a job, the operator's go-ahead, given only while the
     // e-stop is released. The robot's own faults (drive) need the robot's operator.
-    constexpr std::uint16_t kClearable = robot_link::fault::kHeartbeatLost | robot_link::fault::kAborted |
-                                         robot_link::fault::kWorkspace | robot_link::fault::kBadCommand;
-    if ((s.faults & ~kClearable) != 0)
+    if ((s.faults & ~robot_link::fault::kClearableByStation) != 0)
       throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) + ": " +
                                                   robot_link::fault_names(s.faults) +
                                                   " (needs the robot's reset)"};

@@ -70,6 +70,9 @@ inline constexpr std::uint16_t kHeartbeatLost = 1u << 1;  // heartbeat stale: mo
 inline constexpr std::uint16_t kBadCommand = 1u << 2;     // unknown command word or bad parameter
 inline constexpr std::uint16_t kAborted = 1u << 3;        // stopped by Command::kAbort
 inline constexpr std::uint16_t kDrive = 1u << 4;          // the robot's own fault (drive, collision): stopped
+// Stops the station causes itself (heartbeat pause between jobs, its own abort, a
+// refused command): a reset clears them. The others need the robot's operator.
+inline constexpr std::uint16_t kClearableByStation = kHeartbeatLost | kAborted | kWorkspace | kBadCommand;
 }  // namespace fault
 
 const char* to_string(Command c);
