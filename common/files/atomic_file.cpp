@@ -36,16 +36,43 @@ void sync_folder(const std::filesystem::path& path) {
   ::close(dfd);
 }
 
+// A temporary name beside 'path' (so that rename() stays on one file system), with
+// its extension.
+std::filesystem::path temporary_beside(const std::filesystem::path& path) {
+  std::random_device rd;
+  std::filesystem::path tmp = path;
+  tmp.replace_extension();
+  tmp += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(rd());
+  tmp += path.extension();
+  return tmp;
+}
+
+void fsync_file(const std::filesystem::path& path, const std::filesystem::path& target) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const std::string why = system_reason();
+    if (fd >= 0) ::close(fd);
+    throw FileError(target, "flush failed: " + why);
+  }
+  ::close(fd);
+}
+
+void rename_into_place(const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = system_reason();
+    ::unlink(tmp.c_str());
+    throw FileError(path, "rename failed: " + why);
+  }
+  sync_folder(path);
+}
+
 }  // namespace
 
 FileError::FileError(const std::filesystem::path& path, const std::string& problem)
     : std::runtime_error(path.string() + ": " + problem) {}
 
 void write_atomically(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
-  // A temporary name in the same folder, so that rename() stays on one file system.
-  std::random_device rd;
-  std::filesystem::path tmp = path;
-  tmp += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(rd());
+  const std::filesystem::path tmp = temporary_beside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) throw FileError(path, "cannot create a temporary file: " + system_reason());
   if (!write_whole(fd, bytes.data(), bytes.size()) || ::fsync(fd) != 0) {
@@ -59,12 +86,20 @@ void write_atomically(const std::filesystem::path& path, std::span<const std::ui
     ::unlink(tmp.c_str());
     throw FileError(path, "write failed: " + why);
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = system_reason();
+  rename_into_place(tmp, path);
+}
+
+void write_atomically_with(const std::filesystem::path& path,
+                           const std::function<void(const std::filesystem::path& tmp)>& write) {
+  const std::filesystem::path tmp = temporary_beside(path);
+  try {
+    write(tmp);
+    fsync_file(tmp, path);
+  } catch (...) {
     ::unlink(tmp.c_str());
-    throw FileError(path, "rename failed: " + why);
+    throw;
   }
-  sync_folder(path);
+  rename_into_place(tmp, path);
 }
 
 void write_atomically(const std::filesystem::path& path, std::string_view text) {

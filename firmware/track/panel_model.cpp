@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
@@ -104,9 +105,9 @@ PanelModel make_panel_model(const cv::Mat& left, const cv::Mat& right,
 
 void save_panel_model(const PanelModel& model, const std::filesystem::path& path) {
   const std::string file = path.string();
-  const std::string tmp = file + ".tmp.yaml";
   try {
-    cv::FileStorage fs(tmp, cv::FileStorage::WRITE);
+    // In memory, then written atomically: a crash never leaves half a model.
+    cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
     if (!fs.isOpened()) throw TrackError(file + ": cannot write");
     const int n = static_cast<int>(model.features.size());
     cv::Mat layout(n, 3, CV_64F), px_l(n, 2, CV_64F), px_r(n, 2, CV_64F);
@@ -135,17 +136,11 @@ void save_panel_model(const PanelModel& model, const std::filesystem::path& path
          << "}";
     }
     fs << "]";
-    fs.release();
+    files::write_atomically(path, fs.releaseAndGetString());
   } catch (const cv::Exception& e) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
     throw TrackError(file + ": cannot write (" + e.err + ")");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw TrackError(file + ": cannot rename into place");
+  } catch (const files::FileError& e) {
+    throw TrackError(e.what());
   }
 }
 

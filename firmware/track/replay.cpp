@@ -1,13 +1,12 @@
 #include "dentmark/firmware/track/replay.h"
 
-#include <unistd.h>
-
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/track/model_search.h"
 #include "dentmark/firmware/track/sequence.h"
@@ -141,22 +140,10 @@ void write_replay_json(const ReplayResult& result, const fs::path& path) {
     frames.push_back(j);
   }
   const nlohmann::json doc = {{"frames", frames}};
-  const fs::path tmp = path.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream o(tmp);
-    if (!o) throw TrackError(path.string() + ": cannot write");
-    o << doc.dump(1) << "\n";
-    if (!o) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw TrackError(path.string() + ": write failed");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw TrackError(path.string() + ": cannot rename into place");
+  try {
+    files::write_atomically(path, doc.dump(1) + "\n");
+  } catch (const files::FileError& e) {
+    throw TrackError(e.what());
   }
 }
 

@@ -179,7 +179,6 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   reference_depth_ = reference_.centroid().z();
   prev_left_ = pl;
   prev_right_ = pr;
-  t_prev_ = t;
   rms_ema_ = 0.0;
   started_ = true;
 
@@ -327,7 +326,6 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   }
   prev_left_ = pl;
   prev_right_ = pr;
-  t_prev_ = t;
   return result;
 }
 

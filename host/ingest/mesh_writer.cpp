@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "dentmark/common/atomic_file.h"
+
 namespace dentmark::ingest {
 namespace {
 
@@ -40,14 +42,10 @@ class BlockWriter {
   bool good_ = true;
 };
 
-}  // namespace
-
-void write_ply(const std::string& path, const MeshView& mesh,
-               const std::vector<std::array<std::uint8_t, 3>>& colours) {
-  const bool coloured = colours.size() == mesh.vertex_count() && !colours.empty();
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw IngestError(path + ": cannot write: " + std::strerror(errno));
+// Writes the binary PLY to 'f' and closes it; throws IngestError naming 'path'.
+void write_binary_ply(std::FILE* f, const MeshView& mesh,
+                      const std::vector<std::array<std::uint8_t, 3>>* colours, const std::string& path) {
+  const bool coloured = colours != nullptr;
   std::setvbuf(f, nullptr, _IONBF, 0);  // BlockWriter's blocks go straight to write()
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment dentmark, units: m\nelement vertex " +
                        std::to_string(mesh.vertex_count()) +
@@ -62,7 +60,7 @@ void write_ply(const std::string& path, const MeshView& mesh,
     char rec[15];
     const Eigen::Vector3f v = mesh.vertex(i);
     std::memcpy(rec, v.data(), 12);
-    if (coloured) std::memcpy(rec + 12, colours[i].data(), 3);
+    if (coloured) std::memcpy(rec + 12, (*colours)[i].data(), 3);
     out.append(rec, vstride);
   }
   for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
@@ -74,15 +72,22 @@ void write_ply(const std::string& path, const MeshView& mesh,
   }
   bool good = out.flush();
   good = (std::fclose(f) == 0) && good;
-  if (!good) {
-    std::remove(tmp.c_str());
-    throw IngestError(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw IngestError(path + ": cannot rename the temporary file: " + ec.message());
+  if (!good) throw IngestError(path + ": write failed");
+}
+
+}  // namespace
+
+void write_ply(const std::string& path, const MeshView& mesh,
+               const std::vector<std::array<std::uint8_t, 3>>& colours) {
+  const bool coloured = colours.size() == mesh.vertex_count() && !colours.empty();
+  try {
+    files::write_atomically_with(path, [&](const std::filesystem::path& tmp) {
+      std::FILE* f = std::fopen(tmp.c_str(), "wb");
+      if (!f) throw IngestError(path + ": cannot write: " + std::strerror(errno));
+      write_binary_ply(f, mesh, coloured ? &colours : nullptr, path);
+    });
+  } catch (const files::FileError& e) {
+    throw IngestError(e.what());
   }
 }
 

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
 #include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/report/defects_json.h"
@@ -136,16 +137,14 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
     cv::putText(canvas, text, {x0 + 34, yt + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1,
                 cv::LINE_AA);
   }
-  const std::string tmp = path + ".tmp.png";
   try {
-    image::write_png(tmp, canvas);
+    files::write_atomically_with(path,
+                                 [&](const std::filesystem::path& tmp) { image::write_png(tmp, canvas); });
   } catch (const image::ImageError& e) {
-    std::remove(tmp.c_str());
     throw ReportError(path + ": cannot write the PNG (" + e.what() + ")");
+  } catch (const files::FileError& e) {
+    throw ReportError(e.what());
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw ReportError(path + ": cannot rename: " + ec.message());
 }
 
 std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::MeshView& mesh,

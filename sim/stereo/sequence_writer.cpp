@@ -139,6 +139,7 @@ void write_sequence(const SequenceOptions& options, const fs::path& dir) {
   }
   const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
   if (!fs::is_directory(parent, ec)) throw SequenceError(parent.string() + ": no such directory");
+  // A whole folder, so not files::write_atomically: rendered into a sibling, then renamed.
   const fs::path tmp = parent / (dir.filename().string() + ".partial-" + std::to_string(::getpid()));
   fs::remove_all(tmp, ec);
   try {

@@ -12,6 +12,8 @@
 #include <chrono>
 #include <cstring>
 
+#include "dentmark/common/log.h"
+
 namespace dentmark::hal {
 namespace {
 
@@ -225,6 +227,9 @@ void V4l2Camera::stop() {
     xioctl(fd_, VIDIOC_STREAMOFF, &t);  // also dequeues every buffer
     streaming_ = false;
   }
+  if (corrupted_ > 0)
+    log::warn(device_ + ": " + std::to_string(corrupted_) +
+              " frames flagged corrupted by the driver were dropped");
   for (auto& b : buffers_)
     if (b.start) ::munmap(b.start, b.length);
   if (!buffers_.empty()) {

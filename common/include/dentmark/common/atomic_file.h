@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -24,6 +25,13 @@ class FileError : public std::runtime_error {
 // system's reason; the target is untouched and no temporary file is left then.
 void write_atomically(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 void write_atomically(const std::filesystem::path& path, std::string_view text);
+// The same for writers that need a file name (image and YAML libraries, streamed
+// writers): 'write' writes the whole file at the temporary path it is given (same
+// folder, same extension, so a library that picks its format by extension still
+// does), then it is flushed and renamed over 'path'. An exception from 'write'
+// removes the temporary file and passes on unchanged.
+void write_atomically_with(const std::filesystem::path& path,
+                           const std::function<void(const std::filesystem::path& tmp)>& write);
 
 // The whole file; throws FileError naming the file when it cannot be read.
 std::string read_all(const std::filesystem::path& path);

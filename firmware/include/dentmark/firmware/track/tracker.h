@@ -109,7 +109,6 @@ class Tracker {
   std::vector<cv::Point2f> first_left_px_, first_right_px_;
   std::vector<cv::Point2d> first_left_n_, first_right_n_;  // undistorted, normalised
   Eigen::Vector3d plane_normal_ = Eigen::Vector3d::Zero();
-  double t_prev_ = 0.0;
   double rms_ema_ = 0.0;
   double reference_depth_ = 1.0;
   bool started_ = false;

@@ -34,7 +34,6 @@ class V4l2Camera final : public Camera {
   const std::string& name() const override { return device_; }
   bool multiplanar() const { return mplane_; }
   std::uint32_t fourcc() const { return fourcc_; }
-  long corrupted_frames() const { return corrupted_; }
 
  private:
   struct Buffer {
