@@ -81,7 +81,7 @@ double outlier_limit(const std::vector<double>& errors, const StereoFitOptions& 
   std::vector<double> dev;
   for (double e : errors) dev.push_back(std::abs(e - med));
   const double mad = median_of(dev);
-  return std::max(med + o.outlier_mad_factor * 1.4826 * mad, o.outlier_median_ratio * med);
+  return std::max(med + o.outlier_mad_factor * kMadToSigma * mad, o.outlier_median_ratio * med);
 }
 
 cv::Mat rotation_of(const track::StereoCalibration& c) {

@@ -79,24 +79,15 @@ hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double p
   if (!config_.planner.limits.contains(T_base_tool.translation()))
     throw SkipDefect{MarkReason::kOutOfReach, "pose outside the workspace"};
   const std::uint16_t seq = robot_.move_to(T_base_tool, config_.planner.limits.max_speed);
-  const double deadline = clock_.now() + planned_time + config_.move_timeout_margin;
-  for (;;) {
-    // The e-stop is honoured during the move, not only between moves.
-    check_interlocks();
-    robot_.heartbeat();
-    const hal::RobotStatus s = robot_.status();
-    if (s.sequence == seq) {
-      if (s.state == robot_link::State::kIdle) {
-        tip_ = s.T_base_tool.translation();
-        return s;
-      }
-      if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
-        throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) +
-                                                    ": " + robot_link::fault_names(s.faults)};
-    }
-    if (clock_.now() >= deadline) throw JobAbort{MarkReason::kTimeout, "robot move did not finish in time"};
-    clock_.sleep_for(config_.poll_period);
-  }
+  const hal::RobotStatus s = wait_robot(seq, planned_time + config_.move_timeout_margin);
+  tip_ = s.T_base_tool.translation();
+  return s;
+}
+
+hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout) {
+  // The e-stop is honoured during a move or a spray, not only between them. A refusal
+  // or stop (RobotError) ends the job as a robot fault, a wait past 'timeout' as a timeout.
+  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_, [this] { check_interlocks(); });
 }
 
 protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredictor& since_scan) {
@@ -147,17 +138,7 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
     if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop during the spray"};
     throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};
   }
-  const double deadline = clock_.now() + duration + config_.move_timeout_margin;
-  for (;;) {
-    check_interlocks();
-    robot_.heartbeat();
-    const hal::RobotStatus s = robot_.status();
-    if (s.sequence == seq && s.state == robot_link::State::kIdle) break;
-    if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
-      throw JobAbort{MarkReason::kRobotFault, "robot stopped while spraying"};
-    if (clock_.now() >= deadline) throw JobAbort{MarkReason::kTimeout, "spray did not finish in time"};
-    clock_.sleep_for(config_.poll_period);
-  }
+  wait_robot(seq, duration + config_.move_timeout_margin);
   const Transform retract = backed_off(at.T_base_tool, config_.retract_distance);
   if (limits.contains(retract.translation()))
     move_and_wait(retract, plan::move_time(config_.retract_distance, limits));

@@ -5,6 +5,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "dentmark/common/nth_smallest.h"
+
 namespace dentmark::track {
 
 std::optional<cv::Point2f> subpixel_corner(const cv::Mat& grey, const cv::Point2f& start, int half_window,
@@ -44,9 +46,7 @@ std::optional<cv::Point2f> refine_seed(const cv::Mat& grey, const cv::Point2f& s
       values.push_back(e);
       peak_max = std::max(peak_max, static_cast<double>(e));
     }
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
-                   values.end());
-  const double floor = std::max({8.0 * values[values.size() / 2], 0.03 * peak_max, 1e-4});
+  const double floor = std::max({8.0 * median_in_place(values), 0.03 * peak_max, 1e-4});
   double best_d2 = 1e300;
   cv::Point best_p(-1, -1);
   for (int y = 1; y + 1 < roi.height; ++y)

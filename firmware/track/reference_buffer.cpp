@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "dentmark/common/nth_smallest.h"
+
 namespace dentmark::track {
 
 void ReferenceBuffer::add(const ReferenceFeature& feature) {
@@ -55,8 +57,7 @@ std::vector<double> ReferenceBuffer::distance_disagreement(std::span<const Eigen
           std::abs((current[i] - current[j]).norm() - (features_[i].p_camL - features_[j].p_camL).norm()));
     }
     if (d.empty()) continue;
-    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
-    out[i] = d[d.size() / 2];
+    out[i] = median_in_place(d);
   }
   return out;
 }

@@ -7,14 +7,10 @@
 #include <limits>
 
 #include "dentmark/common/geometry/rigid_fit.h"
+#include "dentmark/common/nth_smallest.h"
 
 namespace dentmark::track {
 namespace {
-
-double median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 std::vector<double> residuals(const Transform& t, std::span<const Eigen::Vector3d> from,
                               std::span<const Eigen::Vector3d> to) {
@@ -64,14 +60,14 @@ RobustMotion fit_rigid_robust(std::span<const Eigen::Vector3d> from, std::span<c
       try {
         const RigidFit fit = fit_rigid(f3, t3);
         for (std::size_t i = 0; i < n; ++i) sq[i] = (to[i] - fit.T_to_from * from[i]).squaredNorm();
-        const double med = median(sq);
+        const double med = median_of(sq);
         if (med < best) best = med, t = fit.T_to_from;
       } catch (const GeometryError&) {
       }
     }
     if (!std::isfinite(best)) throw GeometryError("fit_rigid_robust: no non-degenerate triplet");
     // Rousseeuw's finite-sample correction of the LMedS scale.
-    scale = std::max(o.noise_floor, 1.4826 * (1.0 + 5.0 / static_cast<double>(n - 2)) * std::sqrt(best));
+    scale = std::max(o.noise_floor, kMadToSigma * (1.0 + 5.0 / static_cast<double>(n - 2)) * std::sqrt(best));
     // Tukey biweight IRLS from there.
     for (int it = 0; it < 4; ++it) {
       r = residuals(t, from, to);

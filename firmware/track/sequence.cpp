@@ -1,48 +1,16 @@
 #include "dentmark/firmware/track/sequence.h"
 
-#include <charconv>
 #include <cmath>
-#include <fstream>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "dentmark/common/image/png_io.h"
+#include "dentmark/common/stereo_index.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
 namespace dentmark::track {
 namespace fs = std::filesystem;
-namespace {
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return {};
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string field;
-  std::istringstream is(line);
-  while (std::getline(is, field, ',')) out.push_back(trim(field));
-  if (!line.empty() && line.back() == ',') out.emplace_back();
-  return out;
-}
-
-bool parse_long(const std::string& s, long& v) {
-  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
-  return r.ec == std::errc() && r.ptr == s.data() + s.size();
-}
-
-bool parse_double(const std::string& s, double& v) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  v = std::strtod(s.c_str(), &end);
-  return end == s.c_str() + s.size() && std::isfinite(v);
-}
-
-}  // namespace
 
 Sequence load_sequence(const fs::path& dir) {
   std::error_code ec;
@@ -51,37 +19,12 @@ Sequence load_sequence(const fs::path& dir) {
   seq.dir = dir;
   seq.calibration = load_stereo_calibration(dir / "stereo.yaml");
 
-  const fs::path csv = dir / "frames.csv";
-  std::ifstream in(csv);
-  if (!in) throw TrackError(csv.string() + ": cannot open");
-  std::string line;
-  long line_no = 0;
-  bool header = false;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = trim(line);
-    if (t.empty()) continue;
-    const auto f = split_csv(t);
-    const std::string where = csv.string() + ":" + std::to_string(line_no) + ": ";
-    if (!header) {
-      if (f.size() != 4 || f[0] != "index" || f[1] != "t" || f[2] != "left" || f[3] != "right")
-        throw TrackError(where + "header must be 'index,t,left,right'");
-      header = true;
-      continue;
-    }
-    if (f.size() != 4) throw TrackError(where + "expected 4 fields, found " + std::to_string(f.size()));
-    FrameEntry e;
-    if (!parse_long(f[0], e.index)) throw TrackError(where + "index '" + f[0] + "' is not an integer");
-    if (!parse_double(f[1], e.t)) throw TrackError(where + "t '" + f[1] + "' is not a finite number");
-    if (f[2].empty() || f[3].empty()) throw TrackError(where + "empty image path");
-    if (!seq.frames.empty() && !(e.t > seq.frames.back().t))
-      throw TrackError(where + "t must increase (previous " + std::to_string(seq.frames.back().t) + ")");
-    e.left = fs::path(f[2]).is_absolute() ? fs::path(f[2]) : dir / f[2];
-    e.right = fs::path(f[3]).is_absolute() ? fs::path(f[3]) : dir / f[3];
-    seq.frames.push_back(e);
+  try {
+    for (files::StereoIndexEntry& e : files::read_stereo_index(dir))
+      seq.frames.push_back({e.index, e.t, std::move(e.left), std::move(e.right)});
+  } catch (const files::StereoIndexError& e) {
+    throw TrackError(e.what());
   }
-  if (!header) throw TrackError(csv.string() + ": empty (needs header 'index,t,left,right')");
-  if (seq.frames.empty()) throw TrackError(csv.string() + ": no frames");
   return seq;
 }
 

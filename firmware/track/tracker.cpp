@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "dentmark/common/geometry/rigid_fit.h"
+#include "dentmark/common/nth_smallest.h"
 #include "dentmark/firmware/track/plane_view.h"
 #include "dentmark/firmware/track/pose_refine.h"
 #include "dentmark/firmware/track/template_align.h"
@@ -120,8 +121,7 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   if (!found.empty()) {
     std::vector<double> z;
     for (const auto& c : found) z.push_back(c.p.z());
-    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
-    const double med = z[z.size() / 2];
+    const double med = median_in_place(z);
     std::erase_if(found, [&](const Candidate& c) { return c.p.z() < 0.5 * med || c.p.z() > 2.0 * med; });
   }
   // The camL positions again, with the camR patch seen as camL sees the panel's plane
@@ -360,8 +360,7 @@ FrameResult Tracker::fit_and_filter(long index, double t, std::vector<Eigen::Vec
     r.note = "only " + std::to_string(z.size()) + " features tracked";
     return r;
   }
-  std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
-  const double zmed = z[z.size() / 2];
+  const double zmed = median_in_place(z);
   for (std::size_t i = 0; i < valid.size(); ++i) {
     if (!valid[i]) continue;
     from.push_back(reference_[i].p_camL);

@@ -213,7 +213,7 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
     for (const auto& q : use) v.push_back(q.z());
     const double med = median_of(v);
     for (auto& x : v) x = std::abs(x - med);
-    const double limit = 6.0 * 1.4826 * median_of(v);
+    const double limit = 6.0 * kMadToSigma * median_of(v);
     std::erase_if(use, [&](const Eigen::Vector3d& q) { return std::abs(q.z() - med) > limit; });
   }
   Vector5d p = Vector5d::Zero();
@@ -227,7 +227,7 @@ std::optional<ApexFit> fit_at(const std::vector<ApexSample>& samples, double cx,
     std::vector<double> res;
     res.reserve(use.size());
     for (const auto& q : use) res.push_back(std::abs(q.z() - basis(q.x(), q.y()).dot(p)));
-    const double limit = 4.0 * 1.4826 * median_of(res);
+    const double limit = 4.0 * kMadToSigma * median_of(res);
     std::vector<Eigen::Vector3d> kept;
     for (std::size_t j = 0; j < use.size(); ++j)
       if (res[j] <= limit) kept.push_back(use[j]);

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "dentmark/common/nth_smallest.h"
 #include "dentmark/host/ingest/units.h"
 #include "threads.h"
 
@@ -119,9 +120,7 @@ double median_off(const std::vector<Cell>& cells, const std::vector<int>& member
     const double d = c.w / c.area - shape.at(c.u / c.area, c.v / c.area);
     off.push_back(distance ? std::abs(d) : d);
   }
-  const auto mid = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
-  std::nth_element(off.begin(), mid, off.end());
-  return *mid;
+  return median_in_place(off);
 }
 
 }  // namespace

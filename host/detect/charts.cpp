@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "dentmark/common/nth_smallest.h"
 #include "threads.h"
 
 namespace dentmark::detect {
@@ -133,8 +134,7 @@ Charts find_charts(const LinearOctree& tree, double noise_sigma) {
   // point's node must not seed a chart).
   std::vector<double> areas;
   for (const Node& n : nodes) areas.push_back(n.area);
-  std::nth_element(areas.begin(), areas.begin() + static_cast<std::ptrdiff_t>(areas.size() / 2), areas.end());
-  const double typical = 0.5 * areas[areas.size() / 2];
+  const double typical = 0.5 * median_in_place(areas);
   std::vector<int> assigned(nodes.size(), 0);
   while (true) {
     for (int iteration = 0; iteration < 20; ++iteration) {

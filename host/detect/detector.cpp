@@ -180,7 +180,7 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
       if (tree.leaves()[l].count >= 4) sig.push_back(tree.stats(l, l + 1).sigma);
     st.noise_floor_sigma = median_of(sig);
     for (auto& x : sig) x = std::abs(x - st.noise_floor_sigma);
-    st.noise_floor_spread = 1.4826 * median_of(std::move(sig));
+    st.noise_floor_spread = robust_sigma(std::move(sig));
   };
   detail::side_by_side(sum_area, measure_noise_floor);
   // The leaf threshold: a feature of feature_angle's spread seen through the noise

@@ -35,7 +35,7 @@ double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
   if (s.size() < 10) return 0.0;
   const double med = median_of(s);
   for (auto& x : s) x = std::abs(x - med);
-  return 1.4826 * median_of(std::move(s));
+  return dentmark::robust_sigma(std::move(s));
 }
 
 // Clears the pieces of 'grown' that reach the border zone (valid pixels outside the

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "components.h"
+#include "dentmark/common/nth_smallest.h"
 
 namespace dentmark::detect {
 
@@ -134,10 +135,9 @@ std::vector<HoleRegion> find_holes(const HeightMap& map, const cv::Mat& deviatio
     auto& d = depths[c];
     const auto evidence = static_cast<int>(d.size());
     if (!evident[c] || !ringed[c]) continue;
-    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
     cand[c].behind = evidence;
     cand[c].seen_deep = std::move(seen_deep[c]);
-    cand[c].backdrop_depth = d[d.size() / 2];
+    cand[c].backdrop_depth = median_in_place(d);
     holes.push_back(std::move(cand[c]));
   }
   return holes;

@@ -92,9 +92,7 @@ void mesh_delaunay(Mesh& mesh, const std::vector<Eigen::Vector2d>& img,
   std::vector<double> bound(strips + 1);
   bound.front() = *xlo - 1.0, bound.back() = *xhi + 1.0;
   for (std::size_t s = 1; s < strips; ++s) {
-    const auto q = x.begin() + static_cast<std::ptrdiff_t>(x.size() * s / strips);
-    std::nth_element(x.begin(), q, x.end());
-    bound[s] = *q;
+    bound[s] = nth_smallest(x, x.size() * s / strips);
   }
   std::vector<std::vector<Triangle>> found(strips);
   in_threads(strips, [&](std::size_t s) {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "dentmark/common/image/png_io.h"
+#include "dentmark/common/stereo_index.h"
 #include "dentmark/sim/stereo/panel_motion.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
@@ -86,7 +87,7 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
   write_points(dir / "features.csv", feats);
 
   std::ofstream frames(dir / "frames.csv"), truth(dir / "truth.csv");
-  frames << "index,t,left,right\n" << std::setprecision(12);
+  files::write_stereo_index_header(frames);
   truth << "index,t,m00,m01,m02,m03,m10,m11,m12,m13,m20,m21,m22,m23\n" << std::setprecision(15);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
   for (int k = 0; k < n; ++k) {
@@ -117,7 +118,7 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
         throw SequenceError(e.what());
       }
     }
-    frames << k << "," << t << ",left/" << name.str() << ",right/" << name.str() << "\n";
+    files::write_stereo_index_line(frames, k, t, "left/" + name.str(), "right/" + name.str());
     const Transform m = motion.motion(t);
     truth << k << "," << t;
     for (int r = 0; r < 3; ++r)

@@ -1,26 +1,13 @@
 #include "dentmark/firmware/hal/camera/replay_camera.h"
 
 #include <cmath>
-#include <fstream>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 
 #include "dentmark/common/image/png_io.h"
+#include "dentmark/common/stereo_index.h"
 
 namespace dentmark::hal {
 namespace {
-
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::stringstream ss(line);
-  std::string cell;
-  while (std::getline(ss, cell, ',')) {
-    while (!cell.empty() && (cell.back() == '\r' || cell.back() == ' ')) cell.pop_back();
-    while (!cell.empty() && cell.front() == ' ') cell.erase(cell.begin());
-    out.push_back(cell);
-  }
-  return out;
-}
 
 cv::Mat read_grey(const std::filesystem::path& path) {
   cv::Mat img;
@@ -37,42 +24,13 @@ cv::Mat read_grey(const std::filesystem::path& path) {
 }  // namespace
 
 std::vector<ReplayEntry> read_replay_index(const std::filesystem::path& dir, StereoSide side) {
-  const auto csv = dir / "frames.csv";
-  std::ifstream in(csv);
-  if (!in) throw CameraError(csv.string() + ":0: cannot open for reading");
-  std::string text;
-  int line = 0;
-  const auto fail = [&](const std::string& problem) {
-    throw CameraError(csv.string() + ":" + std::to_string(line) + ": " + problem);
-  };
-  if (!std::getline(in, text)) fail("empty file");
-  ++line;
-  if (split_csv(text) != std::vector<std::string>{"index", "t", "left", "right"})
-    fail("header must be 'index,t,left,right'");
   std::vector<ReplayEntry> out;
-  while (std::getline(in, text)) {
-    ++line;
-    if (text.empty() || text == "\r") continue;
-    const auto cells = split_csv(text);
-    if (cells.size() != 4) fail("expected 4 fields, got " + std::to_string(cells.size()));
-    ReplayEntry e;
-    try {
-      std::size_t used = 0;
-      e.index = std::stol(cells[0], &used);
-      if (used != cells[0].size()) throw std::invalid_argument("trailing");
-      e.t = std::stod(cells[1], &used);
-      if (used != cells[1].size()) throw std::invalid_argument("trailing");
-    } catch (const std::exception&) {
-      fail("index and t must be numbers");
-    }
-    if (!std::isfinite(e.t)) fail("t is not finite");
-    if (!out.empty() && !(e.t > out.back().t)) fail("t must increase strictly");
-    const std::string& rel = side == StereoSide::kLeft ? cells[2] : cells[3];
-    if (rel.empty()) fail(std::string(side == StereoSide::kLeft ? "left" : "right") + " image path is empty");
-    e.image = dir / rel;
-    out.push_back(e);
+  try {
+    for (const files::StereoIndexEntry& e : files::read_stereo_index(dir))
+      out.push_back({e.index, e.t, side == StereoSide::kLeft ? e.left : e.right});
+  } catch (const files::StereoIndexError& e) {
+    throw CameraError(e.what());
   }
-  if (out.empty()) fail("no frames");
   return out;
 }
 

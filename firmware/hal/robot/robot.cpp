@@ -5,9 +5,11 @@
 
 namespace dentmark::hal {
 
-RobotStatus Robot::wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock) {
+RobotStatus Robot::wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock,
+                             const std::function<void()>& before_each_poll) {
   const double deadline = clock.now() + timeout;
   for (;;) {
+    if (before_each_poll) before_each_poll();
     heartbeat();
     const RobotStatus s = status();
     if (s.sequence == sequence) {

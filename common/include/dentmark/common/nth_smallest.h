@@ -73,4 +73,14 @@ T median_of(std::vector<T> v) {  // v as it was
   return median_in_place(v);
 }
 
+// The median absolute deviation times this is the standard deviation of Gaussian
+// noise (1 / Φ⁻¹(3/4)): the robust sigma used throughout.
+inline constexpr double kMadToSigma = 1.4826;
+
+// The robust sigma of values about zero (residuals, deviations): kMadToSigma × their
+// median absolute value. 'abs_values' must already be absolute values.
+inline double robust_sigma(std::vector<double> abs_values) {
+  return kMadToSigma * median_of(std::move(abs_values));
+}
+
 }  // namespace dentmark

@@ -93,6 +93,8 @@ class JobRunner {
                       Outcomes& outcomes);
   protocol::Mark mark_one(const Target& target, const plan::MotionPredictor& since_scan);
   hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time);
+  // Robot::wait_done with the interlocks checked in every poll.
+  hal::RobotStatus wait_robot(std::uint16_t sequence, double timeout);
   Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
                                 double t) const;
   bool tracking_ok();

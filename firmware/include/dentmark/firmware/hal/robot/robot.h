@@ -5,6 +5,7 @@
 // (sim_robot.h). The register map is docs/robot-modbus.md.
 
 #include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -64,7 +65,10 @@ class Robot {
   // Polls status every 'period' (heartbeating as it goes) until command 'sequence' is
   // done; returns that status. Throws RobotError kRejected / kStopped when the robot
   // refuses or stops it, kWaitTimeout past 'timeout' seconds of 'clock' time.
-  RobotStatus wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock);
+  // 'before_each_poll' (may be empty) runs first in every round: the caller's
+  // interlocks (e-stop, cancel); what it throws ends the wait.
+  RobotStatus wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock,
+                        const std::function<void()>& before_each_poll = {});
 };
 
 }  // namespace dentmark::hal
