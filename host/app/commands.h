@@ -16,5 +16,7 @@ void register_link(CLI::App& app);
 void register_robot_sim(CLI::App& app);
 // synth stereo (rendered stereo sequences of the moving panel)
 void register_stereo(CLI::App& app, CLI::App& synth);
+// update (RAUC bundles onto an edge box over ssh)
+void register_update(CLI::App& app);
 
 }  // namespace dentmark::cli
