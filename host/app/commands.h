@@ -16,5 +16,7 @@ void register_link(CLI::App& app);
 void register_robot_sim(CLI::App& app);
 // synth stereo (rendered stereo sequences of the moving panel)
 void register_stereo(CLI::App& app, CLI::App& synth);
+// flash (edge box images to disks, with bmaptool)
+void register_flash(CLI::App& app);
 
 }  // namespace dentmark::cli
