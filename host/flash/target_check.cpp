@@ -236,8 +236,8 @@ TargetKind check_target(const fs::path& target, const SystemView& system) {
   }
   std::error_code ec;
   const fs::path canonical = fs::canonical(target, ec);
-  refuse_mount_source(target, ec ? target : canonical, mounts);
   if (S_ISREG(st.st_mode)) {
+    refuse_mount_source(target, ec ? target : canonical, mounts);
     refuse_loop_backing(target, ec ? target : canonical, system.sysfs);
     return TargetKind::kRegularFile;
   }
