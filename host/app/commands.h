@@ -18,5 +18,7 @@ void register_robot_sim(CLI::App& app);
 void register_stereo(CLI::App& app, CLI::App& synth);
 // update (RAUC bundles onto an edge box over ssh)
 void register_update(CLI::App& app);
+// flash (edge box images to disks, with bmaptool)
+void register_flash(CLI::App& app);
 
 }  // namespace dentmark::cli

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   dentmark::cli::register_robot_sim(app);
   dentmark::cli::register_stereo(app, *synth);
   dentmark::cli::register_update(app);
+  dentmark::cli::register_flash(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
