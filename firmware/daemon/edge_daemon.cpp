@@ -5,6 +5,7 @@
 
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/hal/gpio/gpio.h"
+#include "dentmark/firmware/station/calibration_marker.h"
 #include "dentmark/firmware/station/station_link.h"
 
 namespace dentmark::daemon {
@@ -79,8 +80,12 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
   sc.job.planner.limits.max_acceleration = b.limits.max_acceleration;
   std::function<bool()> part;
   if (part_present_) part = [line = part_present_.get()] { return line->get(); };
+  // `calibrate verify` marks the folder when the stored calibration no longer holds:
+  // fault bit 5 and jobs refused while the marker exists (read on every status and job).
+  auto calibration_faults = [dir = options_.calibration_dir] { return station::calibration_faults(dir); };
   station_ = std::make_unique<station::Station>(
-      station::StationDevices{*robot_, *safety_io_, clock_, *tracking_, part, {}, options_.unix_time},
+      station::StationDevices{*robot_, *safety_io_, clock_, *tracking_, part, calibration_faults,
+                              options_.unix_time},
       *store_, sc);
 
   link::ServerOptions so;
