@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 
@@ -73,6 +74,7 @@ std::vector<Transform> plan_calibration_poses(const ToolTarget& target,
     throw CalibrateError("limits.workspace: smaller than twice the planner's margin");
   const Transform T_camL_base = T_base_camL_prior.inverse();
   std::vector<Transform> kept;
+  std::map<std::string, int> rejected;  // why candidates failed, for the error message
   for (int i = o.halton_offset;
        i < o.halton_offset + o.max_candidates && static_cast<int>(kept.size()) < o.poses; ++i) {
     const Eigen::Vector3d u(halton(i, 2), halton(i, 3), halton(i, 5));
@@ -83,16 +85,25 @@ std::vector<Transform> plan_calibration_poses(const ToolTarget& target,
     T_base_tool.linear() =
         T_base_tool_start.linear() * make_transform_rotvec(tilt, Eigen::Vector3d::Zero()).linear();
     T_base_tool.translation() = p;
-    if (!target_visible(stereo, target.spec, T_camL_base * T_base_tool * target.T_tool_target, o)) continue;
+    std::string why;
+    if (!target_visible(stereo, target.spec, T_camL_base * T_base_tool * target.T_tool_target, o, &why)) {
+      ++rejected[why];
+      continue;
+    }
     const bool crowded = std::any_of(kept.begin(), kept.end(), [&](const Transform& k) {
       return (k.translation() - p).norm() < o.min_separation;
     });
     if (!crowded) kept.push_back(T_base_tool);
   }
-  if (static_cast<int>(kept.size()) < o.poses)
+  if (static_cast<int>(kept.size()) < o.poses) {
+    std::string reasons;
+    for (const auto& [why, count] : rejected)
+      reasons += (reasons.empty() ? "" : ", ") + why + " (" + std::to_string(count) + ")";
     throw CalibrateError("only " + std::to_string(kept.size()) + " of " + std::to_string(o.poses) +
-                         " poses inside limits.workspace show the whole target to both cameras: check the "
-                         "board's limits, the target's size and the start pose");
+                         " poses inside limits.workspace show the whole target to both cameras (candidates "
+                         "rejected: " +
+                         reasons + "): check the board's limits, the target's size and the start pose");
+  }
   // Greedy nearest neighbour from the start: short moves.
   std::vector<Transform> ordered;
   Eigen::Vector3d at = T_base_tool_start.translation();

@@ -30,14 +30,22 @@ double grey_at(const cv::Mat& img, cv::Point2f p) {
   return cv::mean(img(r))[0];
 }
 
-// A chessboard's corner order is defined only up to a half turn (OpenCV starts from
-// either end). The target's convention fixes it: the square beyond corner 0 is black,
-// the one beyond the last corner white (which needs COLS + ROWS odd, checked by
-// require_oriented_chessboard). Reverses 'by_id' when the image shows it the other
-// way; false when neither square can be read.
+// OpenCV returns a chessboard's corners in rows of COLS, but may start from any of the
+// grid's four ends and run either way round. The target's convention fixes the order:
+//   1. handedness: the printed face looks at the camera (its z axis towards it), so
+//      with image y down the row step d_i and the column step d_j satisfy
+//      d_i × d_j < 0; otherwise every row is reversed;
+//   2. the half turn left: the square beyond corner 0 is black, the one beyond the
+//      last corner white (COLS + ROWS odd, require_oriented_chessboard); otherwise the
+//      whole order is reversed.
+// False when the end squares cannot be read (outside the image).
 bool orient_chessboard(const TargetSpec& t, const cv::Mat& img, std::vector<cv::Point2f>& by_id) {
   const std::size_t n = by_id.size(), c = static_cast<std::size_t>(t.cols);
-  if (n < c + 2) return false;
+  if (n < c + 2 || n % c != 0) return false;
+  const cv::Point2f di = by_id[1] - by_id[0], dj = by_id[c] - by_id[0];
+  if (di.x * dj.y - di.y * dj.x > 0.0f)
+    for (std::size_t r = 0; r < n; r += c)
+      std::reverse(by_id.begin() + static_cast<long>(r), by_id.begin() + static_cast<long>(r + c));
   const cv::Point2f first = by_id[0] - 0.5f * (by_id[1] - by_id[0]) - 0.5f * (by_id[c] - by_id[0]);
   const cv::Point2f last =
       by_id[n - 1] + 0.5f * (by_id[n - 1] - by_id[n - 2]) + 0.5f * (by_id[n - 1] - by_id[n - 1 - c]);
