@@ -41,6 +41,9 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
                       std::to_string(calibration_.stereo.size.width) + "x" +
                       std::to_string(calibration_.stereo.size.height) + ", the board's cameras give " +
                       std::to_string(b.camera.width) + "x" + std::to_string(b.camera.height));
+  if (const auto why = station::calibration_bad_reason(options_.calibration_dir))
+    log::warn((options_.calibration_dir / station::kCalibrationBadFile).string() +
+              ": the stored calibration is known bad (" + *why + "); jobs are refused until it is redone");
   if (!options_.key_file.empty())
     key_ = step("link key", [&] { return protocol::HmacKey::load(options_.key_file); });
 

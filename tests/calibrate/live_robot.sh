@@ -15,9 +15,9 @@
 set -eu
 edge=$1 host=$2 truth=$3
 tmp=$(mktemp -d)
-robot= pid=
+sim= robot= pid=
 cleanup() {
-  for p in $robot $pid; do kill -9 "$p" 2>/dev/null || true; done
+  for p in $sim $robot $pid; do kill -9 "$p" 2>/dev/null || true; done
   rm -rf "$tmp"
 }
 trap cleanup EXIT
@@ -27,7 +27,7 @@ fail() { echo "FAIL: $*"; exit 1; }
 # --- the twin: scene (truth), stereo.yaml, robot simulator, board
 in_tool=$("$truth" scene "$tmp")
 "$host" robot-sim --port 0 --heartbeat-timeout 2 >"$tmp/sim.log" 2>&1 &
-robot=$!
+sim=$!
 wait_for "$tmp/sim.log" 'listening on [0-9.]*:[0-9]' "the robot simulator"
 sim_port=$(sed -n 's/.*listening on [0-9.]*:\([0-9][0-9]*\).*/\1/p' "$tmp/sim.log" | head -1)
 cat >"$tmp/board.yaml" <<YAML
@@ -105,7 +105,7 @@ cp "$tmp/cal/calibration.bad" "$tmp/station/cal/"
 pid=$!
 wait_for "$tmp/edge.log" 'listening on port [0-9]' "the edge daemon"
 port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$tmp/edge.log")
-"$host" status --to "127.0.0.1:$port" >"$tmp/status.out" 2>&1 || true
+"$host" status "127.0.0.1:$port" >"$tmp/status.out" 2>&1 || true
 cat "$tmp/status.out"
 grep -q "faults: calibration" "$tmp/status.out" || fail "status does not report the calibration fault"
 "$host" synth scan --out "$tmp/door.ply" --truth "$tmp/truth.json" --seed 5 --defects 3 >/dev/null 2>&1
@@ -118,11 +118,16 @@ cat "$tmp/send.out"
 grep -q "calibration is known bad" "$tmp/send.out" || fail "the refusal does not name the calibration"
 # The marker gone (a good verify): the fault clears without a restart.
 rm "$tmp/station/cal/calibration.bad"
-"$host" status --to "127.0.0.1:$port" >"$tmp/status2.out" 2>&1 || true
-grep -q "faults: none" "$tmp/status2.out" || { cat "$tmp/status2.out"; fail "fault not cleared"; }
+"$host" status "127.0.0.1:$port" >"$tmp/status2.out" 2>&1 || true
+# (The replayed 2 s sequence has ended by now: a camera fault may show; not the calibration's.)
+cat "$tmp/status2.out"
+grep -q "faults:" "$tmp/status2.out" || fail "no status after the marker was removed"
+! grep -q "faults:.*calibration" "$tmp/status2.out" || fail "calibration fault not cleared"
+
 kill -TERM "$pid"; wait "$pid" || true
 pid=
-kill -TERM "$robot" 2>/dev/null || true   # loopback_station's simulator
+kill -TERM "$robot" 2>/dev/null || true  # loopback_station's simulator
+robot=
 
 # --- the good file again: verify holds and removes the marker
 cp "$tmp/robot.good.yaml" "$tmp/cal/robot.yaml"
