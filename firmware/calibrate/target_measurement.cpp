@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <opencv2/calib3d.hpp>
+#include <utility>
 
 #include "dentmark/common/geometry/rigid_fit.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
@@ -71,6 +73,15 @@ TargetMeasurement measure_target(const TargetSpec& target, const track::StereoCa
     m.why = "image size differs from the stereo calibration's";
     return m;
   }
+  // OpenCV's full chessboard search takes seconds to give up on an image without the
+  // board (and longer on its 2x retry); its quick check (the one CALIB_CB_FAST_CHECK
+  // runs) rules such images out first.
+  if (target.kind == TargetKind::kChessboard)
+    for (const auto& [img, side] : {std::pair{&left, "left"}, std::pair{&right, "right"}})
+      if (!cv::checkChessboard(*img, cv::Size(target.cols, target.rows))) {
+        m.why = std::string(side) + " camera: no chessboard in view";
+        return m;
+      }
   const Detection dl = detect_target(target, left), dr = detect_target(target, right);
   std::vector<cv::Point2f> pl = full_board(target, dl), pr = full_board(target, dr);
   if (pl.empty() || pr.empty()) {

@@ -7,8 +7,8 @@
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/protocol/hmac_key.h"
 #include "dentmark/common/robot_link/register_map.h"
-#include "dentmark/firmware/station/job_store.h"
 #include "dentmark/firmware/station/calibration_marker.h"
+#include "dentmark/firmware/station/job_store.h"
 #include "dentmark/firmware/station/station_calibration.h"
 
 namespace dentmark::daemon {

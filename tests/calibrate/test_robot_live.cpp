@@ -236,8 +236,9 @@ TEST(RobotLive, WarpedTargetCalibratesWithinHalfAMillimetre) {
 TEST(RobotLive, TargetNotSeenAtTheStartIsAClearError) {
   const WarpRig w;
   clock::SimClock clock;
-  // Facing away from the cameras.
-  ExactRobot robot(clock, make_transform_rotvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0.1, 0.3)));
+  // Facing the cameras but 2.5 m to the side, out of both views.
+  ExactRobot robot(clock,
+                   make_transform_rotvec(Eigen::Vector3d(3.14159265, 0, 0), Eigen::Vector3d(2.5, 0.1, 0.3)));
   WarpCamera left(w, 0, robot, clock), right(w, 1, robot, clock);
   const track::StereoCalibration stereo = stereo_of(w);
   TargetRig rig(robot, left, right, clock, stereo, target_of(w));
