@@ -1,23 +1,34 @@
 // `dentmark-edge calibrate stereo`: the tracking pair's calibration from image pairs
-// of a chessboard or ChArUco target; `calibrate robot --from-file`: T_base_camL from
-// recorded samples (docs/calibration.md). Exit 0: written; 2: bad input (nothing
-// written); 3: the result is over the residual limits its loader enforces (nothing
-// written).
+// of a chessboard or ChArUco target; `calibrate robot`: T_base_camL, live (the robot
+// carries its target through planned poses) or from recorded samples (--from-file);
+// `calibrate verify`: does the stored robot calibration still hold
+// (docs/calibration.md). Exit 0: written / holds; 1: verify: does not hold (marker
+// written); 2: bad input (nothing written); 3: the result is over the residual limits
+// its loader enforces (nothing written); 4: the robot or a camera failed.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <vector>
 
+#include "calibration_devices.h"
 #include "commands.h"
+#include "dentmark/common/clock/clock.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/version.h"
+#include "dentmark/firmware/board/board_config.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/input_digest.h"
 #include "dentmark/firmware/calibrate/robot_calibration_file.h"
+#include "dentmark/firmware/calibrate/robot_live.h"
 #include "dentmark/firmware/calibrate/stereo_calibration_file.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
+#include "dentmark/firmware/hal/camera/camera.h"
+#include "dentmark/firmware/station/calibration_marker.h"
 
 namespace dentmark::edge {
 namespace {
@@ -108,22 +119,163 @@ int run_calibrate_stereo(const CalibrateStereoCliOptions& o) {
   }
 }
 
+struct TargetCliOptions {
+  std::string pattern = "chessboard:7x6";
+  double square = 0.03;
+  double marker = 0.0;
+  std::string dictionary;
+  std::vector<double> in_tool;  // x y z rx ry rz
+};
+
 struct CalibrateRobotCliOptions {
   std::string from_file;
-  std::string out = "robot.yaml";
+  std::string board, calibration, sim_scene, samples_out;
+  int poses = 20;
+  TargetCliOptions target;
+  std::string out;  // default: <calibration>/robot.yaml, else robot.yaml
   bool json = false;
 };
 
+struct CalibrateVerifyCliOptions {
+  std::string board, calibration, sim_scene;
+  int poses = 4;
+  bool json = false;
+};
+
+// Exit code of a device failure (robot link, cameras) in the live modes.
+constexpr int kDeviceFailure = 4;
+
+calibrate::ToolTarget tool_target_of(const TargetCliOptions& o) {
+  calibrate::ToolTarget t;
+  t.spec = calibrate::parse_target(o.pattern, o.square, o.marker, o.dictionary);
+  calibrate::require_oriented_chessboard(t.spec);
+  t.T_tool_target = calibrate::parse_pose6(o.in_tool, "--target-in-tool");
+  return t;
+}
+
+board::BoardConfig board_of(const std::string& file) {
+  try {
+    return board::load_board_config(file);
+  } catch (const board::BoardError& e) {
+    throw calibrate::CalibrateError(e.what());
+  }
+}
+
+track::StereoCalibration stereo_of(const std::filesystem::path& dir, const board::BoardConfig& board) {
+  track::StereoCalibration s;
+  try {
+    s = track::load_stereo_calibration(dir / "stereo.yaml");
+  } catch (const std::exception& e) {
+    throw calibrate::CalibrateError(e.what());
+  }
+  if (s.size != cv::Size(board.camera.width, board.camera.height))
+    throw calibrate::CalibrateError((dir / "stereo.yaml").string() + ": calibrated for " +
+                                    std::to_string(s.size.width) + "x" + std::to_string(s.size.height) +
+                                    ", the board's cameras give " + std::to_string(board.camera.width) + "x" +
+                                    std::to_string(board.camera.height));
+  return s;
+}
+
+calibrate::PosePlanOptions plan_of(const board::BoardConfig& board, int poses) {
+  calibrate::PosePlanOptions p;
+  p.poses = poses;
+  p.workspace_min = board.limits.workspace_min;
+  p.workspace_max = board.limits.workspace_max;
+  return p;
+}
+
+calibrate::PoseProgress log_progress(const char* what) {
+  return [what](std::size_t i, std::size_t n, const calibrate::PoseRecord& r) {
+    char b[200];
+    std::snprintf(b, sizeof b, "%s: pose %zu/%zu at (%.3f, %.3f, %.3f) m: ", what, i + 1, n,
+                  r.T_base_tool.translation().x(), r.T_base_tool.translation().y(),
+                  r.T_base_tool.translation().z());
+    log::info(std::string(b) + (r.used ? "target measured" : "skipped: " + r.why));
+  };
+}
+
+// Removes the folder's "calibration known bad" marker after a good result.
+void clear_marker(const std::string& dir) {
+  if (dir.empty()) return;
+  try {
+    if (station::clear_calibration_bad(dir))
+      log::info(dir + "/" + station::kCalibrationBadFile + " removed: the calibration holds");
+  } catch (const std::exception& e) {
+    log::warn(std::string("cannot remove the calibration marker: ") + e.what());
+  }
+}
+
+struct LiveRun {
+  calibrate::RobotSamples samples;
+  calibrate::RobotFit fit;
+  calibrate::ToolTarget target;
+  int planned = 0;
+  double robot_seconds = 0.0, wall_seconds = 0.0;
+  std::vector<calibrate::PoseRecord> poses;
+};
+
+LiveRun run_live(const CalibrateRobotCliOptions& o) {
+  const board::BoardConfig board = board_of(o.board);
+  const track::StereoCalibration stereo = stereo_of(o.calibration, board);
+  LiveRun run;
+  run.target = tool_target_of(o.target);
+  clock::Clock& clock = clock::monotonic_clock();
+  const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+  calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, run.target);
+  const auto start = std::chrono::steady_clock::now();
+  calibrate::LiveCalibration live = calibrate::calibrate_robot_live(
+      rig, run.target, stereo, plan_of(board, o.poses), log_progress("calibrate robot"));
+  run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  devices->robot->disconnect();
+  run.samples = std::move(live.acquisition.samples);
+  run.fit = live.fit;
+  run.planned = static_cast<int>(live.planned.size());
+  run.robot_seconds = live.acquisition.robot_seconds;
+  run.poses = std::move(live.acquisition.poses);
+  return run;
+}
+
 int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
   try {
-    require_out_folder(o.out);
-    const calibrate::RobotSamples samples = calibrate::read_robot_samples(o.from_file);
+    const bool live = o.from_file.empty();
+    if (live && (o.board.empty() || o.calibration.empty()))
+      throw calibrate::CalibrateError(
+          "calibrate robot: give --from-file FILE, or --board FILE and --calibration DIR");
+    if (!live && !o.board.empty())
+      throw calibrate::CalibrateError("calibrate robot: --from-file and --board exclude each other");
+    const std::string out = !o.out.empty() ? o.out
+                            : o.calibration.empty()
+                                ? std::string("robot.yaml")
+                                : (std::filesystem::path(o.calibration) / "robot.yaml").string();
+    require_out_folder(out);
     calibrate::RobotCalibrationRun run;
-    run.fit = calibrate::fit_robot(samples);
-    run.poses = static_cast<int>(samples.samples.size());
-    run.points_per_pose = static_cast<int>(samples.target_points_tool.size());
+    std::optional<LiveRun> lr;
+    if (live) {
+      try {
+        lr = run_live(o);
+      } catch (const hal::RobotError& e) {
+        log::error(std::string("calibrate robot: robot: ") + e.what());
+        return kDeviceFailure;
+      } catch (const hal::CameraError& e) {
+        log::error(std::string("calibrate robot: camera: ") + e.what());
+        return kDeviceFailure;
+      }
+      if (!o.samples_out.empty()) calibrate::write_robot_samples(o.samples_out, lr->samples);
+      run.fit = lr->fit;
+      run.target = lr->target;
+      run.poses = static_cast<int>(lr->samples.samples.size());
+      run.points_per_pose = static_cast<int>(lr->samples.target_points_tool.size());
+      run.inputs_sha256 = o.samples_out.empty()
+                              ? std::string()
+                              : calibrate::inputs_sha256("robot samples\0", {o.samples_out});
+    } else {
+      const calibrate::RobotSamples samples = calibrate::read_robot_samples(o.from_file);
+      run.fit = calibrate::fit_robot(samples);
+      run.poses = static_cast<int>(samples.samples.size());
+      run.points_per_pose = static_cast<int>(samples.target_points_tool.size());
+      run.inputs_sha256 = calibrate::inputs_sha256("robot samples\0", {o.from_file});
+    }
     run.created_utc = calibrate::utc_now_iso8601();
-    run.inputs_sha256 = calibrate::inputs_sha256("robot samples\0", {o.from_file});
     run.tool_version = kVersion;
     const calibrate::RobotFit& f = run.fit;
     const calibrate::RobotResidualLimits lim;
@@ -136,26 +288,115 @@ int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
     else if (f.handeye_translation_diff_m > lim.max_handeye_translation_m)
       std::snprintf(bad, sizeof bad, "hand-eye cross-check differs by %.3f mm > %.3f mm",
                     f.handeye_translation_diff_m * 1e3, lim.max_handeye_translation_m * 1e3);
-    if (!*bad) calibrate::write_robot_calibration(o.out, run);
+    if (!*bad) {
+      calibrate::write_robot_calibration(out, run);
+      clear_marker(o.calibration);
+    }
     if (o.json) {
-      std::cout << calibrate::robot_calibration_json(run) << std::endl;
+      nlohmann::json j = nlohmann::json::parse(calibrate::robot_calibration_json(run));
+      if (lr) {
+        j["poses_planned"] = lr->planned;
+        j["robot_seconds"] = lr->robot_seconds;
+        j["wall_seconds"] = lr->wall_seconds;
+        nlohmann::json skipped = nlohmann::json::array();
+        for (std::size_t i = 0; i < lr->poses.size(); ++i)
+          if (!lr->poses[i].used) skipped.push_back({{"pose", i + 1}, {"why", lr->poses[i].why}});
+        j["poses_skipped"] = skipped;
+      }
+      j["written"] = *bad ? std::string() : out;
+      std::cout << j.dump(2) << std::endl;
     } else {
+      if (lr)
+        std::printf("poses planned: %d, target measured at %d; robot time %.1f s, wall time %.1f s\n",
+                    lr->planned, run.poses, lr->robot_seconds, lr->wall_seconds);
       std::printf("poses: %d, target points per pose: %d\n", run.poses, run.points_per_pose);
       std::printf("rigid fit RMS: %.3f mm\n", f.rms_m * 1e3);
       std::printf("hold-out point transfer (leave one pose out): RMS %.3f mm, worst pose %.3f mm\n",
                   f.holdout_rms_m * 1e3, f.holdout_max_pose_m * 1e3);
       std::printf("hand-eye cross-check (calibrateRobotWorldHandEye): %.3f mm, %.3f mrad apart\n",
                   f.handeye_translation_diff_m * 1e3, f.handeye_rotation_diff_rad * 1e3);
-      if (!*bad) std::printf("written: %s\n", o.out.c_str());
+      if (!*bad) std::printf("written: %s\n", out.c_str());
     }
     if (*bad) {
-      log::error(std::string("calibrate robot: ") + bad + "; " + o.out +
-                 " not written: re-record the samples");
+      log::error(std::string("calibrate robot: ") + bad + "; " + out +
+                 " not written: " + (live ? "run it again (docs/calibration.md)" : "re-record the samples"));
       return 3;
     }
     return 0;
   } catch (const calibrate::CalibrateError& e) {
     log::error(e.what());
+    return 2;
+  } catch (const std::runtime_error& e) {  // devices that cannot be opened, a bad scene
+    log::error(std::string("calibrate robot: ") + e.what());
+    return 2;
+  }
+}
+
+int run_calibrate_verify(const CalibrateVerifyCliOptions& o) {
+  try {
+    const board::BoardConfig board = board_of(o.board);
+    const std::filesystem::path dir(o.calibration);
+    const track::StereoCalibration stereo = stereo_of(dir, board);
+    const Transform T_base_camL = calibrate::load_robot_calibration(dir / "robot.yaml");
+    const std::optional<calibrate::ToolTarget> target = calibrate::load_robot_target(dir / "robot.yaml");
+    if (!target)
+      throw calibrate::CalibrateError(
+          (dir / "robot.yaml").string() +
+          ": no target recorded (a file from --from-file): calibrate with the robot "
+          "first (calibrate robot --board)");
+    clock::Clock& clock = clock::monotonic_clock();
+    calibrate::LiveVerify v;
+    try {
+      const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+      calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, *target);
+      calibrate::PosePlanOptions plan = plan_of(board, o.poses);
+      plan.halton_offset = 5000;  // other poses than the calibration's
+      v = calibrate::verify_robot_live(rig, *target, stereo, T_base_camL, plan,
+                                       board.calibration.verify_tolerance, log_progress("calibrate verify"));
+      devices->robot->disconnect();
+    } catch (const hal::RobotError& e) {
+      log::error(std::string("calibrate verify: robot: ") + e.what());
+      return kDeviceFailure;
+    } catch (const hal::CameraError& e) {
+      log::error(std::string("calibrate verify: camera: ") + e.what());
+      return kDeviceFailure;
+    }
+    const calibrate::VerifyResult& r = v.result;
+    if (r.holds) {
+      clear_marker(o.calibration);
+    } else {
+      station::mark_calibration_bad(dir,
+                                    "calibrate verify " + calibrate::utc_now_iso8601() + ": " + r.reason);
+      log::error("calibrate verify: the stored calibration does not hold: " + r.reason + "; " +
+                 (dir / station::kCalibrationBadFile).string() +
+                 " written: the daemon refuses jobs until the robot is calibrated again");
+    }
+    if (o.json) {
+      nlohmann::json j;
+      j["holds"] = r.holds;
+      j["reason"] = r.reason;
+      j["poses_planned"] = r.poses_planned;
+      j["poses_measured"] = r.poses_measured;
+      j["rms_m"] = r.rms_m;
+      j["max_pose_m"] = r.max_pose_m;
+      j["pose_rms_m"] = r.pose_rms_m;
+      j["tolerance_m"] = r.tolerance_m;
+      j["robot_seconds"] = v.acquisition.robot_seconds;
+      std::cout << j.dump(2) << std::endl;
+    } else {
+      std::printf("poses: %d planned, target measured at %d; robot time %.1f s\n", r.poses_planned,
+                  r.poses_measured, v.acquisition.robot_seconds);
+      std::printf(
+          "point transfer with the stored T_base_camL: RMS %.3f mm, worst pose %.3f mm (tolerance %.3f mm)\n",
+          r.rms_m * 1e3, r.max_pose_m * 1e3, r.tolerance_m * 1e3);
+      std::printf("%s\n", r.holds ? "calibration holds" : ("calibration does NOT hold: " + r.reason).c_str());
+    }
+    return r.holds ? 0 : 1;
+  } catch (const calibrate::CalibrateError& e) {
+    log::error(e.what());
+    return 2;
+  } catch (const std::runtime_error& e) {
+    log::error(std::string("calibrate verify: ") + e.what());
     return 2;
   }
 }
@@ -186,16 +427,47 @@ void register_calibrate(CLI::App& app) {
   stereo->callback([opt] { exit_code() = run_calibrate_stereo(*opt); });
 
   auto ropt = std::make_shared<CalibrateRobotCliOptions>();
-  CLI::App* robot =
-      cmd->add_subcommand("robot", "Robot-to-stereo calibration (T_base_camL) from recorded samples");
+  CLI::App* robot = cmd->add_subcommand(
+      "robot",
+      "Robot-to-stereo calibration (T_base_camL): live, driving the robot, or from recorded samples");
+  robot->add_option("--from-file", ropt->from_file,
+                    "Recorded samples: target points in the tool frame, robot poses, "
+                    "triangulated points (OpenCV FileStorage YAML)");
+  robot->add_option("--board", ropt->board, "Live: board file (robot link, cameras, workspace limits)");
+  robot->add_option("--calibration", ropt->calibration,
+                    "Calibration folder (stereo.yaml is read; robot.yaml is written there by default)");
+  robot->add_option("--poses", ropt->poses, "Live: poses to plan and visit (default 20)")
+      ->check(CLI::Range(6, 200));
+  robot->add_option("--target", ropt->target.pattern,
+                    "Live: the tool's target, chessboard:COLSxROWS (COLS+ROWS odd) or charuco:COLSxROWS "
+                    "(default chessboard:7x6)");
+  robot->add_option("--square", ropt->target.square, "Live: the target's square side, metres (default 0.03)");
+  robot->add_option("--marker", ropt->target.marker, "Live: ChArUco marker side, metres");
+  robot->add_option("--dictionary", ropt->target.dictionary, "Live: ChArUco dictionary (e.g. DICT_5X5_100)");
   robot
-      ->add_option("--from-file", ropt->from_file,
-                   "Samples: target points in the tool frame, robot poses, "
-                   "triangulated points (OpenCV FileStorage YAML)")
-      ->required();
-  robot->add_option("--out", ropt->out, "Calibration file to write (default robot.yaml)");
+      ->add_option("--target-in-tool", ropt->target.in_tool,
+                   "Live: the target's pose on the tool, x y z (m) rx ry rz (rad), from the mount's drawing")
+      ->expected(6);
+  robot->add_option("--samples-out", ropt->samples_out,
+                    "Live: also write the samples taken (a --from-file file)");
+  robot->add_option("--sim-scene", ropt->sim_scene, "Twin only: the simulated cameras' scene (ground truth)");
+  robot->add_option("--out", ropt->out,
+                    "Calibration file to write (default <calibration>/robot.yaml or robot.yaml)");
   robot->add_flag("--json", ropt->json, "Print the figures as JSON");
   robot->callback([ropt] { exit_code() = run_calibrate_robot(*ropt); });
+
+  auto vopt = std::make_shared<CalibrateVerifyCliOptions>();
+  CLI::App* verify = cmd->add_subcommand(
+      "verify", "Check that the stored robot calibration still holds (exit 0 holds, 1 does not)");
+  verify->add_option("--board", vopt->board, "Board file (robot, cameras, calibration.verify_tolerance)")
+      ->required();
+  verify->add_option("--calibration", vopt->calibration, "Calibration folder (stereo.yaml, robot.yaml)")
+      ->required();
+  verify->add_option("--poses", vopt->poses, "Poses to re-measure (default 4)")->check(CLI::Range(1, 50));
+  verify->add_option("--sim-scene", vopt->sim_scene,
+                     "Twin only: the simulated cameras' scene (ground truth)");
+  verify->add_flag("--json", vopt->json, "Print the figures as JSON");
+  verify->callback([vopt] { exit_code() = run_calibrate_verify(*vopt); });
 }
 
 }  // namespace dentmark::edge

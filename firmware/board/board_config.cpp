@@ -177,7 +177,7 @@ ModbusConfig parse_modbus(const Section& s) {
 
 BoardConfig parse_root(const YAML::Node& root, const std::string& source) {
   const Section top(root, "", source, 1);
-  top.allow_only({"board", "cpu", "gpio", "camera", "modbus", "link", "limits"});
+  top.allow_only({"board", "cpu", "gpio", "camera", "modbus", "link", "limits", "calibration"});
   BoardConfig cfg;
   cfg.source = source;
 
@@ -236,6 +236,14 @@ BoardConfig parse_root(const YAML::Node& root, const std::string& source) {
       lim.fail("limits.workspace_min", "must be below limits.workspace_max on every axis");
   cfg.limits.max_speed = lim.number("max_speed", 1e-4, 5.0);
   cfg.limits.max_acceleration = lim.number("max_acceleration", 1e-4, 50.0);
+
+  if (top.has("calibration")) {
+    const Section cal = top.section("calibration");
+    cal.allow_only({"verify_tolerance"});
+    // 0.1 mm is below what the stereo pair resolves at the working distance; 20 mm
+    // would let a knocked camera pass.
+    cfg.calibration.verify_tolerance = cal.number_or("verify_tolerance", 0.002, 1e-4, 0.02);
+  }
   return cfg;
 }
 

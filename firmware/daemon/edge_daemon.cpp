@@ -5,6 +5,7 @@
 
 #include "dentmark/common/log.h"
 #include "dentmark/firmware/hal/gpio/gpio.h"
+#include "dentmark/firmware/station/calibration_marker.h"
 #include "dentmark/firmware/station/station_link.h"
 
 namespace dentmark::daemon {
@@ -40,6 +41,9 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
                       std::to_string(calibration_.stereo.size.width) + "x" +
                       std::to_string(calibration_.stereo.size.height) + ", the board's cameras give " +
                       std::to_string(b.camera.width) + "x" + std::to_string(b.camera.height));
+  if (const auto why = station::calibration_bad_reason(options_.calibration_dir))
+    log::warn((options_.calibration_dir / station::kCalibrationBadFile).string() +
+              ": the stored calibration is known bad (" + *why + "); jobs are refused until it is redone");
   if (!options_.key_file.empty())
     key_ = step("link key", [&] { return protocol::HmacKey::load(options_.key_file); });
 
@@ -79,8 +83,12 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
   sc.job.planner.limits.max_acceleration = b.limits.max_acceleration;
   std::function<bool()> part;
   if (part_present_) part = [line = part_present_.get()] { return line->get(); };
+  // `calibrate verify` marks the folder when the stored calibration no longer holds:
+  // fault bit 5 and jobs refused while the marker exists (read on every status and job).
+  auto calibration_faults = [dir = options_.calibration_dir] { return station::calibration_faults(dir); };
   station_ = std::make_unique<station::Station>(
-      station::StationDevices{*robot_, *safety_io_, clock_, *tracking_, part, {}, options_.unix_time},
+      station::StationDevices{*robot_, *safety_io_, clock_, *tracking_, part, calibration_faults,
+                              options_.unix_time},
       *store_, sc);
 
   link::ServerOptions so;

@@ -7,6 +7,7 @@
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/protocol/hmac_key.h"
 #include "dentmark/common/robot_link/register_map.h"
+#include "dentmark/firmware/station/calibration_marker.h"
 #include "dentmark/firmware/station/job_store.h"
 #include "dentmark/firmware/station/station_calibration.h"
 
@@ -106,6 +107,9 @@ SelfTestReport run_self_test(const SelfTestOptions& o, clock::Clock& clock) {
       throw std::runtime_error((o.calibration_dir / "stereo.yaml").string() + ": calibrated for " +
                                size_text(size.width, size.height) + ", the board's cameras give " +
                                size_text(board.camera.width, board.camera.height));
+    if (const auto why = station::calibration_bad_reason(o.calibration_dir))
+      throw std::runtime_error((o.calibration_dir / station::kCalibrationBadFile).string() +
+                               ": the stored calibration is known bad (" + *why + "): recalibrate");
     return o.calibration_dir.string() + " valid (" + size_text(size.width, size.height) + ")";
   });
   const char* devices[] = {"gpio", "robot", "camera left", "camera right"};

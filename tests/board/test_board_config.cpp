@@ -65,6 +65,15 @@ TEST(BoardConfig, Rpi5Values) {
   EXPECT_DOUBLE_EQ(cfg.limits.max_speed, 0.25);
   EXPECT_DOUBLE_EQ(cfg.camera.max_skew, 0.002);
   EXPECT_EQ(cfg.link.port, 7878);
+  EXPECT_DOUBLE_EQ(cfg.calibration.verify_tolerance, 0.002);
+}
+
+TEST(BoardConfig, CalibrationSectionIsOptional) {
+  std::string text = rpi5_text();
+  text = text.substr(0, text.find("calibration:"));
+  EXPECT_DOUBLE_EQ(parse_board_config(text, "test.yaml").calibration.verify_tolerance, 0.002);
+  text += "calibration: { verify_tolerance: 0.0015 }\n";
+  EXPECT_DOUBLE_EQ(parse_board_config(text, "test.yaml").calibration.verify_tolerance, 0.0015);
 }
 
 TEST(BoardConfig, RtuBoard) {
@@ -96,6 +105,8 @@ TEST(BoardConfig, ErrorsNameKeyAndLine) {
       {"workspace_min: [-0.60, -0.80, -0.10]", "workspace_min: [-0.60, -0.80, 2.0]", "limits.workspace_min",
        "below"},
       {"\"GPIO22\"", "\"GPIO17\"", "gpio", "different lines"},
+      {"verify_tolerance: 0.002", "verify_tolerance: 0.5", "calibration.verify_tolerance", "out of range"},
+      {"verify_tolerance: 0.002", "verify_tol: 0.002", "calibration.verify_tol", "unknown key"},
   };
   for (const Case& c : cases) {
     const BoardError e = parse_error(rpi5_with(c.from, c.to));

@@ -1,7 +1,8 @@
 #!/bin/sh
 # `dentmark-edge selftest` against a loopback station (loopback_station.sh): it passes
 # when every device answers, and each broken piece fails its own check by name with the
-# others still run: robot simulator gone, calibration file missing, calibration for
+# others still run: robot simulator gone, calibration file missing, calibration marked
+# bad by `calibrate verify`, calibration for
 # other cameras, board file broken (device checks skipped), state folder not a folder.
 #   selftest.sh DENTMARK_EDGE DENTMARK
 set -eu
@@ -38,6 +39,11 @@ selftest no_stereo 1
 expect no_stereo "^FAIL calibration: .*stereo.yaml"
 expect no_stereo "^ok   robot: "
 mv "$tmp/stereo.yaml" "$tmp/cal/stereo.yaml"
+
+echo "calibrate verify: point transfer RMS 5.1 mm > tolerance 2.0 mm" >"$tmp/cal/calibration.bad"
+selftest calibration_bad 1
+expect calibration_bad "^FAIL calibration: .*calibration.bad: the stored calibration is known bad (calibrate verify: point"
+rm "$tmp/cal/calibration.bad"
 
 sed 's/width: 640, height: 512/width: 1280, height: 1024/' "$tmp/board.yaml" >"$tmp/big.yaml"
 selftest big 1 "$tmp/big.yaml"

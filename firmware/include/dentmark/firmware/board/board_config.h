@@ -83,6 +83,13 @@ struct Limits {
   }
 };
 
+// The station's calibration checks (docs/calibration.md).
+struct CalibrationConfig {
+  // `dentmark-edge calibrate verify`: the stored T_base_camL holds while the target's
+  // re-measured points transfer into base within this RMS (m).
+  double verify_tolerance = 0.002;
+};
+
 struct BoardConfig {
   std::string source;  // file it was read from
   std::string vendor;
@@ -94,6 +101,7 @@ struct BoardConfig {
   ModbusConfig modbus;
   LinkConfig link;
   Limits limits;
+  CalibrationConfig calibration;  // optional section; defaults above
 };
 
 // Reads and validates a board file. Throws BoardError naming the file, line and key.

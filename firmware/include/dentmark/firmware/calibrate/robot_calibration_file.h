@@ -8,23 +8,30 @@
 // (version), T_base_camL (4×4), rms (the fit's point RMS, m),
 // holdout_rms_m, holdout_max_pose_m, handeye_translation_diff_m,
 // handeye_rotation_diff_rad, poses, points_per_pose, date (UTC ISO 8601), inputs_sha256,
-// tool_version.
+// tool_version; from a live calibration also the target it measured: target_pattern
+// (chessboard:COLSxROWS or charuco:COLSxROWS), target_square_m, target_marker_m,
+// target_dictionary, T_tool_target (4×4), which `calibrate verify` re-measures.
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "dentmark/firmware/calibrate/robot_fit.h"
+#include "dentmark/firmware/calibrate/tool_target.h"
 
 namespace dentmark::calibrate {
 
 // Throws CalibrateError naming the file and the field (samples[i].points_camL, …).
 RobotSamples read_robot_samples(const std::filesystem::path& path);
+// Writes a samples file `--from-file` reads (atomically). Throws CalibrateError.
+void write_robot_samples(const std::filesystem::path& path, const RobotSamples& samples);
 
 struct RobotCalibrationRun {
   RobotFit fit;
   int poses = 0;
   int points_per_pose = 0;
   std::string created_utc, inputs_sha256, tool_version;
+  std::optional<ToolTarget> target;  // live mode: the target measured
 };
 
 std::string robot_calibration_yaml(const RobotCalibrationRun& run);
@@ -46,5 +53,8 @@ struct RobotResidualLimits {
 // non-4×4 matrix, non-finite values, a non-rigid transform (rotation not orthonormal
 // within 1e-3 or determinant not +1, last row not 0 0 0 1) and residuals over 'limits'.
 Transform load_robot_calibration(const std::filesystem::path& path, const RobotResidualLimits& limits = {});
+// The target a live calibration recorded, or nullopt when the file has none (written
+// from a samples file). Throws CalibrateError on a malformed target.
+std::optional<ToolTarget> load_robot_target(const std::filesystem::path& path);
 
 }  // namespace dentmark::calibrate

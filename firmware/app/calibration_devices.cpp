@@ -1,0 +1,40 @@
+#include "calibration_devices.h"
+
+#include <stdexcept>
+
+#include "dentmark/firmware/hal/board_hal.h"
+
+namespace dentmark::edge {
+
+std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
+                                                             const std::string& sim_scene,
+                                                             clock::Clock& clock) {
+  auto d = std::make_unique<CalibrationDevices>();
+  hal::HalChoice choice;
+  d->robot = hal::make_robot(board, choice, clock);
+  if (board.camera.backend == board::CameraBackend::kSim) {
+    if (sim_scene.empty())
+      throw std::runtime_error(board.source +
+                               ": camera.backend is sim: give the twin's scene with --sim-scene FILE");
+    d->scene = sim::read_calibration_scene(sim_scene);
+    if (d->scene->rig.size != cv::Size(board.camera.width, board.camera.height))
+      throw std::runtime_error(sim_scene + ": image size differs from the board's camera.width/height");
+    d->renderer = std::make_unique<sim::ChessboardRenderer>(d->scene->rig, d->scene->target);
+    // Where the target truly is: the robot's reported pose (the twin's robot is exact),
+    // through the scene's mount and true T_base_camL.
+    auto render = [dev = d.get(), rng = std::make_shared<cv::RNG>(7)](stereo::Eye eye) {
+      const Transform T_camL_target =
+          dev->scene->T_base_camL.inverse() * dev->robot->status().T_base_tool * dev->scene->T_tool_target;
+      return dev->renderer->render(eye, T_camL_target, dev->scene->imaging, *rng);
+    };
+    choice.render = [render](double) { return render(stereo::Eye::kLeft); };
+    choice.render_right = [render](double) { return render(stereo::Eye::kRight); };
+  } else if (!sim_scene.empty()) {
+    throw std::runtime_error("--sim-scene: only for a board whose camera.backend is sim");
+  }
+  d->left = hal::make_camera(board, hal::StereoSide::kLeft, choice, clock);
+  d->right = hal::make_camera(board, hal::StereoSide::kRight, choice, clock);
+  return d;
+}
+
+}  // namespace dentmark::edge
