@@ -6,8 +6,8 @@
 //
 // vivid keeps showing an output buffer until the next one is queued, so the door
 // stands still at its last frame once the sequence ends (the line stopped); the
-// program keeps streaming until SIGTERM or SIGINT. Frames it could not decode in time
-// are skipped (counted), so the door's motion keeps its real-time pace.
+// program keeps streaming until SIGTERM or SIGINT. Every frame is decoded into memory
+// before the clock starts.
 //
 // Usage: vivid_feeder SEQUENCE_DIR LEFT_OUTPUT_DEVICE RIGHT_OUTPUT_DEVICE
 // Prints one line when streaming starts and a summary at the end; exit 0, or 1 with
@@ -157,36 +157,36 @@ int run(const std::string& dir, const std::string& left_dev, const std::string& 
   const cv::Size size = seq.calibration.size;
   GreyOutput left(left_dev, size), right(right_dev, size);
   const auto& frames = seq.frames;
+  // Every frame decoded before the clock starts: decoding a PNG takes a large share of
+  // an emulated CPU, which the daemon needs while the door moves.
+  const double t_load = now();
+  std::vector<cv::Mat> left_frames, right_frames;
+  for (const auto& f : frames) {
+    left_frames.push_back(dentmark::track::load_grey(f.left, size));
+    right_frames.push_back(dentmark::track::load_grey(f.right, size));
+    if (g_stop) return 0;
+  }
+  std::printf("loaded %zu frames of %dx%d in %.1f s\n", frames.size(), size.width, size.height,
+              now() - t_load);
   // Frame 0 twice: both outputs stream (and loop back) before the clock starts.
   for (int i = 0; i < 2; ++i) {
-    left.write(dentmark::track::load_grey(frames[0].left, size));
-    right.write(dentmark::track::load_grey(frames[0].right, size));
+    left.write(left_frames[0]);
+    right.write(right_frames[0]);
   }
   const double start = now() - frames[0].t;
-  std::printf("streaming %zu frames of %dx%d (%.1f s) from %s to %s and %s\n", frames.size(), size.width,
-              size.height, frames.back().t - frames[0].t, dir.c_str(), left_dev.c_str(), right_dev.c_str());
+  std::printf("streaming %zu frames (%.1f s) from %s to %s and %s\n", frames.size(),
+              frames.back().t - frames[0].t, dir.c_str(), left_dev.c_str(), right_dev.c_str());
   std::fflush(stdout);
-  long written = 1, skipped = 0;
   double worst_late = 0.0;
   for (std::size_t k = 1; k < frames.size() && !g_stop; ++k) {
-    // Skip frames whose successor is already due: decoding could not keep up.
-    if (k + 1 < frames.size() && now() >= start + frames[k + 1].t) {
-      ++skipped;
-      continue;
-    }
-    const cv::Mat l = dentmark::track::load_grey(frames[k].left, size);
-    const cv::Mat r = dentmark::track::load_grey(frames[k].right, size);
     const double due = start + frames[k].t;
     while (!g_stop && now() < due)
       std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - now())));
     worst_late = std::max(worst_late, now() - due);
-    left.write(l);
-    right.write(r);
-    ++written;
+    left.write(left_frames[k]);
+    right.write(right_frames[k]);
   }
-  std::printf(
-      "sequence done: %ld frames written, %ld skipped, latest %.1f ms after its time; holding the last\n",
-      written, skipped, 1e3 * worst_late);
+  std::printf("sequence done, the latest frame %.1f ms after its time; holding the last\n", 1e3 * worst_late);
   std::fflush(stdout);
   while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   return 0;
