@@ -30,6 +30,8 @@ struct RunOptions {
   double replay_window = 30.0;
   int max_clients = 8;
   double watchdog_timeout = 0.2;  // s without a control-loop kick before the valve is forced off
+  double tracking_timeout = station::JobConfig{}.tracking_timeout;
+  double max_estimate_age = station::JobConfig{}.max_estimate_age;
 };
 
 std::string default_state_dir() {
@@ -82,6 +84,8 @@ int run_daemon(const RunOptions& opt) {
   d.replay_window = opt.replay_window;
   d.max_clients = opt.max_clients;
   d.watchdog_timeout = opt.watchdog_timeout;
+  d.station.job.tracking_timeout = opt.tracking_timeout;
+  d.station.job.max_estimate_age = opt.max_estimate_age;
   d.station.firmware_version = kVersion;
 
   if (opt.check_only) return check_setup(d, !opt.calibration_dir.empty());
@@ -163,6 +167,15 @@ void register_run(CLI::App& app) {
                   "Valve watchdog: s the control loop may go without a turn before the valve is forced off "
                   "and latched")
       ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  run->add_option("--tracking-timeout", opt->tracking_timeout,
+                  "s a job waits for the tracker (the scan's pair found and the kept pairs caught up) before "
+                  "giving up on a defect")
+      ->check(CLI::Range(0.1, 600.0))
+      ->capture_default_str();
+  run->add_option("--max-estimate-age", opt->max_estimate_age,
+                  "s: an older tracker estimate counts as tracking lost")
+      ->check(CLI::Range(0.01, 60.0))
       ->capture_default_str();
   run->callback([opt] { exit_code() = run_daemon(*opt); });
 }

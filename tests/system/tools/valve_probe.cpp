@@ -96,7 +96,8 @@ int estop(const std::string& value, const std::string& pull, const std::string& 
   double rise = 0.0;
   while (!valve.high()) {
     if (g_stop || now() - begin > timeout) {
-      std::printf("estop: the valve did not open within %.0f s\n", timeout);
+      std::printf("estop: the valve did not open (%s after %.1f s)\n", g_stop ? "stopped" : "timed out",
+                  now() - begin);
       return 1;
     }
     pause_us(200);

@@ -91,10 +91,14 @@ if [[ ! -f $run/env ]]; then
   sed "s/^  port: 1502$/  port: $robot_port/" "$board_src" >/etc/dentmark/board.yaml
   grep -q "port: $robot_port" /etc/dentmark/board.yaml || fail "board file: robot port"
 
-  # The valve watchdog at 1 s instead of 0.2 s: under TCG on a loaded host the job's
-  # control loop can miss 0.2 s while the host does not run the emulator (the e-stop
-  # path does not depend on it). The unit reads its extra arguments from this file.
-  echo 'DENTMARK_EDGE_ARGS=--watchdog-timeout 1.0' >/etc/default/dentmark-edge
+  # Time limits for an emulated CPU (the unit reads its extra arguments from this
+  # file): the valve watchdog at 1 s instead of 0.2 s (the job's control loop misses
+  # 0.2 s while the host does not run the emulator; the e-stop path does not depend on
+  # it); 60 s instead of 5 s for the tracker to find the door and catch up on the kept
+  # pairs, and estimates up to 2 s old instead of 0.5 s (a 640x480 pair takes the
+  # emulated tracker a large fraction of a second).
+  echo 'DENTMARK_EDGE_ARGS=--watchdog-timeout 1.0 --tracking-timeout 60 --max-estimate-age 2' \
+    >/etc/default/dentmark-edge
 
   # The rendered door into the vivid outputs.
   systemd-run --quiet --unit=dentmark-feeder "$build/tests/system/vivid_feeder" "$state/seq" /dev/video12 \
