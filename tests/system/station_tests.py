@@ -337,8 +337,8 @@ def test_kill(st):
             props = st.show("ActiveState", "SubState", "NRestarts", "MainPID", "StatusText")
             if int(props["NRestarts"]) > before and props["ActiveState"] == "active" and props["SubState"] == "running":
                 break
-            if time.monotonic() - t_kill > 120:
-                raise Failure(f"systemd did not bring the daemon back within 120 s: {props}")
+            if time.monotonic() - t_kill > 330:
+                raise Failure(f"systemd did not bring the daemon back within 330 s: {props}")
             time.sleep(0.2)
         t_back = time.monotonic() - t_kill
         valve_after_restart = st.sh(f"cat {env['VALVE_VALUE']}").strip()
