@@ -228,7 +228,7 @@ def test_job(st):
     record = st.work / "job.robot.json"
     robot = st.robot_sim(record)
     try:
-        st.sh(f"rm -f {RUN}/pulses-job; systemd-run --quiet --unit=dentmark-valve-watch --collect "
+        st.sh(f"rm -f {RUN}/pulses-job; systemctl stop dentmark-valve-watch 2>/dev/null; systemd-run --quiet --unit=dentmark-valve-watch --collect "
               f"{st.build}/tests/system/valve_probe watch {env['VALVE_VALUE']} {RUN}/pulses-job")  # fmt: skip
         job = unique_job(1)
         dml, markable, listed = st.defect_list(job)
@@ -269,7 +269,7 @@ def test_estop(st, trials=int(os.environ.get("DENTMARK_ESTOP_TRIALS", "3"))):
         record = st.work / f"estop{k}.robot.json"
         robot = st.robot_sim(record)
         try:
-            st.sh(f"rm -f {RUN}/estop{k}; systemd-run --quiet --unit=dentmark-estop-probe --collect "
+            st.sh(f"rm -f {RUN}/estop{k}; systemctl stop dentmark-estop-probe 2>/dev/null; systemd-run --quiet --unit=dentmark-estop-probe --collect "
                   f"-p StandardOutput=file:{RUN}/estop{k} {st.build}/tests/system/valve_probe estop "
                   f"{env['VALVE_VALUE']} {env['ESTOP_PULL']} {env['ESTOP_PRESSED']} 200")  # fmt: skip
             dml, markable, listed = st.defect_list(job)
@@ -318,7 +318,7 @@ def test_kill(st):
     job = unique_job(3)
     marks_path = st.work / "kill.marks.json"
     try:
-        st.sh(f"rm -f {RUN}/pulses-kill; systemd-run --quiet --unit=dentmark-valve-watch --collect "
+        st.sh(f"rm -f {RUN}/pulses-kill; systemctl stop dentmark-valve-watch 2>/dev/null; systemd-run --quiet --unit=dentmark-valve-watch --collect "
               f"{st.build}/tests/system/valve_probe watch {env['VALVE_VALUE']} {RUN}/pulses-kill")  # fmt: skip
         dml, markable, listed = st.defect_list(job)
         sender = st.send(dml, marks_path)
