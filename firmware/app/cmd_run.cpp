@@ -3,6 +3,7 @@
 // systemd its state (Type=notify: READY=1, WATCHDOG=1, STATUS=, STOPPING=1).
 #include <systemd/sd-daemon.h>
 
+#include <chrono>
 #include <memory>
 #include <string>
 
@@ -28,6 +29,9 @@ struct RunOptions {
   std::string key_file;
   double replay_window = 30.0;
   int max_clients = 8;
+  double watchdog_timeout = 0.2;  // s without a control-loop kick before the valve is forced off
+  double tracking_timeout = station::JobConfig{}.tracking_timeout;
+  double max_estimate_age = station::JobConfig{}.max_estimate_age;
 };
 
 std::string status_line(const protocol::Status& s) {
@@ -70,6 +74,9 @@ int run_daemon(const RunOptions& opt) {
   d.bind_address = opt.bind_address;
   d.replay_window = opt.replay_window;
   d.max_clients = opt.max_clients;
+  d.watchdog_timeout = opt.watchdog_timeout;
+  d.station.job.tracking_timeout = opt.tracking_timeout;
+  d.station.job.max_estimate_age = opt.max_estimate_age;
   d.station.firmware_version = kVersion;
 
   if (opt.check_only) return check_setup(d, !opt.calibration_dir.empty());
@@ -100,10 +107,18 @@ int run_daemon(const RunOptions& opt) {
       "running; SIGINT or SIGTERM stops" +
       (watchdog ? std::string("; systemd watchdog ") + std::to_string(watchdog_usec / 1000) + " ms" : ""));
   std::string last_status;
+  // systemd's advice: feed the watchdog at half its period or more often. A quarter
+  // leaves room for a slow turn; every turn (10 per second) would cost the service
+  // manager a message each, which on a slow CPU is a real share of it.
+  const auto feed_period = std::chrono::microseconds(watchdog_usec / 4);
+  auto last_feed = std::chrono::steady_clock::now() - feed_period;
   while (!stop.wait_for(std::chrono::milliseconds(100))) {
     // The watchdog is fed only while the station answers: a hung station lock is a restart.
     const std::string now = status_line(edge->station().status());
-    if (watchdog) sd_notify(0, "WATCHDOG=1");
+    if (watchdog && std::chrono::steady_clock::now() - last_feed >= feed_period) {
+      sd_notify(0, "WATCHDOG=1");
+      last_feed = std::chrono::steady_clock::now();
+    }
     if (now != last_status) {
       sd_notifyf(0, "STATUS=%s", now.c_str());
       last_status = now;
@@ -139,6 +154,20 @@ void register_run(CLI::App& app) {
   run->add_option("--replay-window", opt->replay_window, "Accepted send-time skew and replay memory, s")
       ->check(CLI::Range(0.1, 3600.0));
   run->add_option("--max-clients", opt->max_clients, "Simultaneous link clients")->check(CLI::Range(1, 256));
+  run->add_option("--watchdog-timeout", opt->watchdog_timeout,
+                  "Valve watchdog: s the control loop may go without a turn before the valve is forced off "
+                  "and latched")
+      ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  run->add_option("--tracking-timeout", opt->tracking_timeout,
+                  "s a job waits for the tracker (the scan's pair found and the kept pairs caught up) before "
+                  "giving up on a defect")
+      ->check(CLI::Range(0.1, 600.0))
+      ->capture_default_str();
+  run->add_option("--max-estimate-age", opt->max_estimate_age,
+                  "s: an older tracker estimate counts as tracking lost")
+      ->check(CLI::Range(0.01, 60.0))
+      ->capture_default_str();
   run->callback([opt] { exit_code() = run_daemon(*opt); });
 }
 

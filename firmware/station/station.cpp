@@ -118,7 +118,8 @@ protocol::Message Station::accept(const protocol::Decoded& d, std::span<const st
     return refusal(d, protocol::ErrorCode::kInternal,
                    "the stored calibration is known bad; recalibrate (dentmark-edge calibrate verify)");
   if (auto why = dev_.tracking.refuse(*list)) return refusal(d, protocol::ErrorCode::kUnsupported, *why);
-  if (dev_.safety.estop_active()) return refusal(d, protocol::ErrorCode::kBusy, "e-stop is pressed");
+  // The line as it reads now: after an e-stop is released, the next job clears its latch (arm()).
+  if (dev_.safety.estop_pressed()) return refusal(d, protocol::ErrorCode::kBusy, "e-stop is pressed");
   try {
     store_.store(frame, *list);
   } catch (const JobStoreError& e) {

@@ -43,7 +43,8 @@ BoardError parse_error(const std::string& text) {
 }
 
 TEST(BoardConfig, ShippedBoardsLoad) {
-  for (const char* b : {"raspberrypi/rpi5", "nxp/imx8mp-evk", "qemu/virt-aarch64"}) {
+  for (const char* b :
+       {"raspberrypi/rpi5", "nxp/imx8mp-evk", "qemu/virt-aarch64", "qemu/virt-aarch64-guest"}) {
     const std::string path = kSource + "/boards/" + b + "/board.yaml";
     const BoardConfig cfg = load_board_config(path);
     EXPECT_EQ(cfg.vendor + "/" + cfg.name, b);

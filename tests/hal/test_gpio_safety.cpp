@@ -120,7 +120,14 @@ TEST(SafetySupervisor, EstopForcesTheValveOffWithin10ms) {
   EXPECT_EQ(safety.reason(), SafeReason::kEstop);
   EXPECT_FALSE(safety.open_valve());  // latched
   EXPECT_FALSE(safety.reset());       // still pressed
+  EXPECT_TRUE(safety.estop_pressed());
   chip.drive("estop", false);
+  // Released: the input reads so at once, the latch stays until reset (the daemon
+  // refuses a new job only while the input is pressed; the job's arm() resets).
+  const double released = c.now() + 1.0;
+  while (safety.estop_pressed() && c.now() < released) std::this_thread::yield();
+  EXPECT_FALSE(safety.estop_pressed());
+  EXPECT_EQ(safety.reason(), SafeReason::kEstop);
   EXPECT_TRUE(safety.reset());
   EXPECT_TRUE(safety.open_valve());
 }

@@ -25,6 +25,9 @@ class SafetyIo {
  public:
   virtual ~SafetyIo() = default;
   virtual bool estop_active() = 0;
+  // The e-stop input as it reads now: a new job is refused while it is pressed; a
+  // latch left by an earlier e-stop is cleared by arm() once it is released.
+  virtual bool estop_pressed() { return estop_active(); }
   // Clears latched safe states at the start of a job (the operator's go-ahead);
   // false when that is not allowed (e-stop pressed).
   virtual bool arm() { return !estop_active(); }

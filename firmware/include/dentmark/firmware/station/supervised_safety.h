@@ -13,6 +13,7 @@ class SupervisedSafety final : public SafetyIo {
   SupervisedSafety(hal::SafetySupervisor& supervisor, clock::Clock& clock)
       : supervisor_(supervisor), clock_(clock) {}
   bool estop_active() override { return supervisor_.reason() == hal::SafeReason::kEstop; }
+  bool estop_pressed() override { return supervisor_.estop_pressed(); }
   bool arm() override;
   void kick() override { supervisor_.kick(); }
   bool spray(double duration) override;

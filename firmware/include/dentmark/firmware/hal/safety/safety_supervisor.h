@@ -63,6 +63,8 @@ class SafetySupervisor {
   // Clears the latch when the e-stop is released; returns false if it is still pressed.
   bool reset();
   bool latched() const { return reason_.load() != SafeReason::kNone; }
+  // The e-stop input as it reads now (a latch from an e-stop outlives its release).
+  bool estop_pressed() const { return estop_ && estop_->get(); }
   SafeReason reason() const { return reason_.load(); }
   // Time of the last e-stop activation edge the supervisor acted on, as the input
   // line stamped it (GpiodGpio: the kernel's CLOCK_MONOTONIC event time); < 0 before any.
