@@ -1,6 +1,5 @@
 #include "dentmark/host/flash/flash.h"
 
-#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -11,6 +10,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/process.h"
 #include "dentmark/host/flash/bmap.h"
 
@@ -51,39 +51,6 @@ std::string tool_message(const process::Result& r) {
   }
   if (!error.empty()) return error;
   return last.empty() ? "exit code " + std::to_string(r.exit_code) : last;
-}
-
-// A folder beside 'target' for the temporary copy, so that the rename stays on one
-// filesystem; removed (with anything in it) when the flash does not complete.
-class ScratchDir {
- public:
-  explicit ScratchDir(const fs::path& target) {
-    const fs::path parent = target.parent_path().empty() ? "." : target.parent_path();
-    std::string tmpl = (parent / ("." + target.filename().string() + ".flash-XXXXXX")).string();
-    if (!::mkdtemp(tmpl.data()))
-      throw FlashError(target.string() +
-                       ": cannot make a temporary folder beside it: " + std::strerror(errno));
-    dir_ = tmpl;
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-  const fs::path& path() const { return dir_; }
-
- private:
-  fs::path dir_;
-};
-
-void sync_path(const fs::path& path, int flags) {
-  const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
-  if (fd < 0) throw FlashError(path.string() + ": cannot open to flush: " + std::strerror(errno));
-  const int rc = ::fsync(fd);
-  const int err = errno;
-  ::close(fd);
-  if (rc != 0) throw FlashError(path.string() + ": flush to disk failed: " + std::strerror(err));
 }
 
 void bmaptool_copy(const FlashOptions& o, const fs::path& bmap, const fs::path& dest) {
@@ -163,28 +130,22 @@ FlashReport flash_image(const FlashOptions& o, const SystemView& system) {
   }
 
   // A regular file: written and verified beside the target, then renamed over it.
-  ScratchDir scratch(o.target);
-  const fs::path temp = scratch.path() / "image";
-  auto t0 = std::chrono::steady_clock::now();
-  bmaptool_copy(o, report.bmap, temp);
-  sync_path(temp, O_RDONLY);
-  report.write_seconds = seconds_since(t0);
-  const auto written_size = fs::file_size(temp);
-  if (written_size != report.image_size)
-    throw FlashError(o.target.string() + ": bmaptool wrote " + std::to_string(written_size) +
-                     " bytes, the image has " + std::to_string(report.image_size));
-  t0 = std::chrono::steady_clock::now();
-  report.verified_bytes = verify(o, temp, report.bmap, report.image_size);
-  report.verify_seconds = seconds_since(t0);
-  if (report.kind == TargetKind::kRegularFile) {
+  files::write_atomically_with(o.target, [&](const fs::path& temp) {
+    auto t0 = std::chrono::steady_clock::now();
+    bmaptool_copy(o, report.bmap, temp);
+    report.write_seconds = seconds_since(t0);
+    const auto written_size = fs::file_size(temp);
+    if (written_size != report.image_size)
+      throw FlashError(o.target.string() + ": bmaptool wrote " + std::to_string(written_size) +
+                       " bytes, the image has " + std::to_string(report.image_size));
+    t0 = std::chrono::steady_clock::now();
+    report.verified_bytes = verify(o, temp, report.bmap, report.image_size);
+    report.verify_seconds = seconds_since(t0);
     // The new file keeps the old one's permissions.
     struct stat st {};
-    if (::stat(o.target.c_str(), &st) == 0) ::chmod(temp.c_str(), st.st_mode & 07777);
-  }
-  if (::rename(temp.c_str(), o.target.c_str()) != 0)
-    throw FlashError(o.target.string() +
-                     ": cannot move the written image into place: " + std::strerror(errno));
-  sync_path(o.target.parent_path().empty() ? "." : o.target.parent_path(), O_RDONLY | O_DIRECTORY);
+    if (report.kind == TargetKind::kRegularFile && ::stat(o.target.c_str(), &st) == 0)
+      ::chmod(temp.c_str(), st.st_mode & 07777);
+  });
   return report;
 }
 

@@ -9,8 +9,8 @@
 //      with the map's, or with no_bmap the SHA-256 of the image's length of the target
 //      with the image's own.
 // A regular-file target is written into a temporary file beside it and renamed over
-// it only once verified, so a failure leaves the old file (or none), never half an
-// image. A block device is written in place.
+// it only once verified (files::write_atomically_with), so a failure leaves the old
+// file (or none), never half an image. A block device is written in place.
 
 #include <cstdint>
 #include <filesystem>
