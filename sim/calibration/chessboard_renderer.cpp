@@ -27,15 +27,7 @@ double shade(const ChessboardTarget& t, const TargetImaging& im, double x, doubl
 ChessboardRenderer::ChessboardRenderer(stereo::StereoRig rig, ChessboardTarget target)
     : rig_(std::move(rig)), target_(target) {
   for (int e = 0; e < 2; ++e) {
-    const stereo::PinholeCamera& cam = camera(rig_, static_cast<stereo::Eye>(e));
-    std::vector<cv::Point2f> pix;
-    pix.reserve(static_cast<std::size_t>(rig_.size.area()));
-    for (int v = 0; v < rig_.size.height; ++v)
-      for (int u = 0; u < rig_.size.width; ++u)
-        pix.emplace_back(static_cast<float>(u), static_cast<float>(v));
-    std::vector<cv::Point2f> norm;
-    cv::undistortPoints(pix, norm, cam.K, cam.D);
-    normalized_[e] = cv::Mat(norm, true).reshape(2, rig_.size.height);
+    normalized_[e] = stereo::normalized_pixel_grid(camera(rig_, static_cast<stereo::Eye>(e)), rig_.size);
   }
 }
 

@@ -53,15 +53,7 @@ cv::Point2d project_cam(const PinholeCamera& cam, const Eigen::Vector3d& p) {
 
 StereoRenderer::StereoRenderer(StereoRig rig, DoorModel door) : rig_(std::move(rig)), door_(std::move(door)) {
   for (int e = 0; e < 2; ++e) {
-    const PinholeCamera& cam = camera(rig_, static_cast<Eye>(e));
-    std::vector<cv::Point2f> pix;
-    pix.reserve(static_cast<std::size_t>(rig_.size.area()));
-    for (int v = 0; v < rig_.size.height; ++v)
-      for (int u = 0; u < rig_.size.width; ++u)
-        pix.emplace_back(static_cast<float>(u), static_cast<float>(v));
-    std::vector<cv::Point2f> norm;
-    cv::undistortPoints(pix, norm, cam.K, cam.D);
-    normalized_[e] = cv::Mat(norm, true).reshape(2, rig_.size.height);
+    normalized_[e] = normalized_pixel_grid(camera(rig_, static_cast<Eye>(e)), rig_.size);
   }
 }
 

@@ -1,6 +1,8 @@
 #include "dentmark/sim/stereo/stereo_rig.h"
 
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
+#include <vector>
 
 #include "dentmark/sim/stereo/sequence_writer.h"
 
@@ -38,6 +40,16 @@ void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path) 
   fs << "K1" << cv::Mat(rig.left.K) << "D1" << rig.left.D << "K2" << cv::Mat(rig.right.K) << "D2"
      << rig.right.D;
   fs << "R" << r << "T" << t;
+}
+
+cv::Mat normalized_pixel_grid(const PinholeCamera& cam, cv::Size size) {
+  std::vector<cv::Point2f> pix;
+  pix.reserve(static_cast<std::size_t>(size.area()));
+  for (int v = 0; v < size.height; ++v)
+    for (int u = 0; u < size.width; ++u) pix.emplace_back(static_cast<float>(u), static_cast<float>(v));
+  std::vector<cv::Point2f> norm;
+  cv::undistortPoints(pix, norm, cam.K, cam.D);
+  return cv::Mat(norm, true).reshape(2, size.height);
 }
 
 }  // namespace dentmark::stereo

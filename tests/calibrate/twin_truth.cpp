@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <string>
 
+#include "../support/rig_calibration.h"
 #include "dentmark/firmware/calibrate/calibration_poses.h"
 #include "dentmark/firmware/calibrate/robot_calibration_file.h"
 #include "dentmark/sim/calibration/calibration_scene.h"
@@ -19,17 +20,6 @@
 using namespace dentmark;
 
 namespace {
-
-track::StereoCalibration stereo_of(const stereo::StereoRig& rig) {
-  track::StereoCalibration s;
-  s.size = rig.size;
-  s.left.K = rig.left.K;
-  s.left.D = rig.left.D.clone();
-  s.right.K = rig.right.K;
-  s.right.D = rig.right.D.clone();
-  s.T_camR_camL = rig.T_camR_camL;
-  return s;
-}
 
 calibrate::ToolTarget target_of(const sim::CalibrationScene& s) {
   calibrate::ToolTarget t;
@@ -64,7 +54,8 @@ int check(const std::string& scene_file, const std::string& robot_file, double m
   plan.halton_offset = 20000;  // not the calibration's (1…) nor verify's (5000…) poses
   const Transform home =
       make_transform_rotvec(Eigen::Vector3d(3.14159265358979, 0, 0), Eigen::Vector3d(0.4, 0.0, 0.5));
-  const auto poses = calibrate::plan_calibration_poses(target, stereo_of(s.rig), s.T_base_camL, home, plan);
+  const auto poses =
+      calibrate::plan_calibration_poses(target, test::exact_calibration(s.rig), s.T_base_camL, home, plan);
   double sum = 0.0, worst = 0.0;
   std::size_t n = 0;
   for (const Transform& T_base_tool : poses)

@@ -4,6 +4,7 @@
 // first estimate itself.
 #include <gtest/gtest.h>
 
+#include "../support/rig_calibration.h"
 #include "dentmark/firmware/simulation/workcell.h"
 #include "dentmark/firmware/station/tracking_motion_source.h"
 #include "dentmark/sim/stereo/panel_motion.h"
@@ -12,17 +13,6 @@
 
 namespace dentmark::station {
 namespace {
-
-track::StereoCalibration calibration_of(const stereo::StereoRig& rig) {
-  track::StereoCalibration c;
-  c.size = rig.size;
-  c.left.K = rig.left.K;
-  c.left.D = rig.left.D.clone();
-  c.right.K = rig.right.K;
-  c.right.D = rig.right.D.clone();
-  c.T_camR_camL = rig.T_camR_camL;
-  return c;
-}
 
 TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLine) {
   // The twin's workcell: the door at position A of the paper's station.
@@ -53,7 +43,7 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
         renderer.project(stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
     seeds.emplace_back(static_cast<float>(p.x) + 1.5f, static_cast<float>(p.y) - 1.0f);
   }
-  TrackingMotionSource source(calibration_of(rig), seeds, frames);
+  TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);
   while (!source.ended()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_GE(source.frames_tracked(), 18);
 

@@ -26,6 +26,10 @@ struct StereoRig {
 // k1 is the radial distortion given to both cameras (0: none).
 StereoRig make_rig(cv::Size size, double focal_px, double baseline_m, double toe_in_rad, double k1 = 0.0);
 
+// Every pixel's undistorted, normalised image coordinates (x/z, y/z) through 'cam':
+// a size.height × size.width CV_32FC2 map, for renderers that cast a ray per pixel.
+cv::Mat normalized_pixel_grid(const PinholeCamera& cam, cv::Size size);
+
 // Writes image_width, image_height, K1, D1, K2, D2, R, T as OpenCV FileStorage YAML.
 void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path);
 
