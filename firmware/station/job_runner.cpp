@@ -85,9 +85,16 @@ hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double p
 }
 
 hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout) {
-  // The e-stop is honoured during a move or a spray, not only between them. A refusal
-  // or stop (RobotError) ends the job as a robot fault, a wait past 'timeout' as a timeout.
-  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_, [this] { check_interlocks(); });
+  // The e-stop is honoured during a move or a spray, not only between them. Within a
+  // job the robot is never stopped or faulted, whichever command it last took: a drive
+  // fault between two commands must not be cleared by the next one. A refusal or stop
+  // ends the job as a robot fault, a wait past 'timeout' as a timeout.
+  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_, [this](const hal::RobotStatus& s) {
+    check_interlocks();
+    if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
+      throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) + ": " +
+                                                  robot_link::fault_names(s.faults)};
+  });
 }
 
 protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredictor& since_scan) {

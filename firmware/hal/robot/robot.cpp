@@ -6,12 +6,12 @@
 namespace dentmark::hal {
 
 RobotStatus Robot::wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock,
-                             const std::function<void()>& before_each_poll) {
+                             const std::function<void(const RobotStatus&)>& on_status) {
   const double deadline = clock.now() + timeout;
   for (;;) {
-    if (before_each_poll) before_each_poll();
     heartbeat();
     const RobotStatus s = status();
+    if (on_status) on_status(s);
     if (s.sequence == sequence) {
       if (s.state == robot_link::State::kIdle) return s;
       if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped) {

@@ -65,10 +65,11 @@ class Robot {
   // Polls status every 'period' (heartbeating as it goes) until command 'sequence' is
   // done; returns that status. Throws RobotError kRejected / kStopped when the robot
   // refuses or stops it, kWaitTimeout past 'timeout' seconds of 'clock' time.
-  // 'before_each_poll' (may be empty) runs first in every round: the caller's
-  // interlocks (e-stop, cancel); what it throws ends the wait.
+  // 'on_status' (may be empty) sees every status read before the command's own checks:
+  // the caller's interlocks (e-stop, cancel, a stop before the robot took the
+  // command); what it throws ends the wait.
   RobotStatus wait_done(std::uint16_t sequence, double timeout, double period, clock::Clock& clock,
-                        const std::function<void()>& before_each_poll = {});
+                        const std::function<void(const RobotStatus&)>& on_status = {});
 };
 
 }  // namespace dentmark::hal
