@@ -9,14 +9,44 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <string_view>
 
 extern char** environ;
 
 namespace dentmark::process {
+namespace {
+
+// The program's path: argv[0] itself when it names a path, else the first executable
+// of that name on PATH. Resolved here, not by posix_spawnp, so that a missing program is
+// an error everywhere (under qemu-user a failed exec shows only as the child's exit 127).
+std::string resolve(const std::string& program) {
+  if (program.find('/') != std::string::npos) {
+    if (::access(program.c_str(), X_OK) != 0)
+      throw ProcessError(program + ": cannot run: " + std::strerror(errno));
+    return program;
+  }
+  const char* env = std::getenv("PATH");
+  std::string_view dirs = env && *env ? env : "/usr/local/bin:/usr/bin:/bin";
+  for (;;) {
+    const std::size_t end = dirs.find(':');
+    const std::string_view dir = dirs.substr(0, end);
+    const std::filesystem::path candidate =
+        std::filesystem::path(dir.empty() ? std::string_view(".") : dir) / program;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    if (end == std::string_view::npos) break;
+    dirs.remove_prefix(end + 1);
+  }
+  throw ProcessError(program + ": cannot run: not found on PATH");
+}
+
+}  // namespace
 
 Result run(const std::vector<std::string>& argv, double timeout) {
   if (argv.empty()) throw ProcessError("no program to run");
+  const std::string program = resolve(argv[0]);
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
     throw ProcessError(argv[0] + ": cannot make a pipe: " + std::strerror(errno));
@@ -29,7 +59,7 @@ Result run(const std::vector<std::string>& argv, double timeout) {
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = ::posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), environ);
+  const int rc = ::posix_spawn(&pid, program.c_str(), &actions, nullptr, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   ::close(pipe_fds[1]);
   if (rc != 0) {

@@ -19,8 +19,8 @@ struct Result {
   bool timed_out = false;  // killed (SIGKILL) after the timeout
 };
 
-// argv[0] is looked up on PATH. timeout <= 0: wait as long as it runs. Throws
-// ProcessError naming the program when it cannot be started.
+// argv[0] is looked up on PATH (unless it names a path). timeout <= 0: wait as long as
+// it runs. Throws ProcessError naming the program when it is not found or cannot start.
 Result run(const std::vector<std::string>& argv, double timeout = 0.0);
 
 }  // namespace dentmark::process
