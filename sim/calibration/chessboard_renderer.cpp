@@ -82,15 +82,7 @@ cv::Mat ChessboardRenderer::render(stereo::Eye eye, const Transform& T_camL_targ
         }
       img(v, u) = static_cast<float>(sum / (kSub * kSub));
     }
-  if (im.blur_sigma > 0.0) cv::GaussianBlur(img, img, cv::Size(0, 0), im.blur_sigma);
-  if (im.noise_sigma > 0.0) {
-    cv::Mat1f noise(img.size());
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, im.noise_sigma);
-    img += noise;
-  }
-  cv::Mat out;
-  img.convertTo(out, CV_8U);  // saturates
-  return out;
+  return stereo::expose_8bit(img, im.blur_sigma, im.noise_sigma, rng);
 }
 
 }  // namespace dentmark::sim

@@ -164,15 +164,7 @@ cv::Mat StereoRenderer::render(Eye eye, const Transform& T_camL_panel, const Ren
   }
 
   img = img * conditions.gain + conditions.offset;
-  if (conditions.blur_sigma > 0.0) cv::GaussianBlur(img, img, cv::Size(0, 0), conditions.blur_sigma);
-  if (conditions.noise_sigma > 0.0) {
-    cv::Mat1f noise(img.size());
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, conditions.noise_sigma);
-    img += noise;
-  }
-  cv::Mat out;
-  img.convertTo(out, CV_8U);
-  return out;
+  return expose_8bit(img, conditions.blur_sigma, conditions.noise_sigma, rng);
 }
 
 }  // namespace dentmark::stereo

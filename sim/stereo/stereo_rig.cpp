@@ -2,6 +2,7 @@
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
 #include <vector>
 
 #include "dentmark/sim/stereo/sequence_writer.h"
@@ -50,6 +51,18 @@ cv::Mat normalized_pixel_grid(const PinholeCamera& cam, cv::Size size) {
   std::vector<cv::Point2f> norm;
   cv::undistortPoints(pix, norm, cam.K, cam.D);
   return cv::Mat(norm, true).reshape(2, size.height);
+}
+
+cv::Mat expose_8bit(cv::Mat1f image, double blur_sigma, double noise_sigma, cv::RNG& rng) {
+  if (blur_sigma > 0.0) cv::GaussianBlur(image, image, cv::Size(0, 0), blur_sigma);
+  if (noise_sigma > 0.0) {
+    cv::Mat1f noise(image.size());
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, noise_sigma);
+    image += noise;
+  }
+  cv::Mat out;
+  image.convertTo(out, CV_8U);  // saturates
+  return out;
 }
 
 }  // namespace dentmark::stereo

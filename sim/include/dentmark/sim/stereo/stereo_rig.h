@@ -30,6 +30,11 @@ StereoRig make_rig(cv::Size size, double focal_px, double baseline_m, double toe
 // a size.height × size.width CV_32FC2 map, for renderers that cast a ray per pixel.
 cv::Mat normalized_pixel_grid(const PinholeCamera& cam, cv::Size size);
 
+// The sensor's last stage for a rendered irradiance image (grey levels, float): optical
+// blur (Gaussian, sigma in px; 0: none), additive Gaussian noise (grey levels; 0: none),
+// then 8-bit with saturation.
+cv::Mat expose_8bit(cv::Mat1f image, double blur_sigma, double noise_sigma, cv::RNG& rng);
+
 // Writes image_width, image_height, K1, D1, K2, D2, R, T as OpenCV FileStorage YAML.
 void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path);
 
