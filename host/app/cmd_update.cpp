@@ -69,6 +69,8 @@ void register_update(CLI::App& app) {
   cmd->add_option("-o,--ssh-option", args->box.ssh_options, "More ssh/scp -o options (repeatable)");
   cmd->add_option("--remote-file", args->options.remote_file, "Where the bundle goes on the box")
       ->capture_default_str();
+  cmd->add_flag("--allow-downgrade", args->options.allow_downgrade,
+                "Install a bundle older than the running system (the box refuses one otherwise)");
   cmd->add_option("--timeout", args->options.timeout, "s for the whole update")
       ->check(CLI::Range(10.0, 86400.0))
       ->capture_default_str();

@@ -137,6 +137,10 @@ std::vector<std::string> words(const std::string& text) {
   return out;
 }
 
+// The box's RAUC pre-install handler (packaging/image/rauc-pre-install) accepts one
+// older bundle while this file exists, and removes it.
+constexpr const char* kAllowDowngradeFlag = "/run/dentmark/allow-downgrade";
+
 }  // namespace
 
 UpdateResult update_box(const BoxAddress& address, const std::string& bundle, const UpdateOptions& o) {
@@ -161,6 +165,11 @@ UpdateResult update_box(const BoxAddress& address, const std::string& bundle, co
   say("copying " + bundle + " (" + std::to_string(std::filesystem::file_size(bundle) >> 20) + " MiB) to " +
       o.remote_file);
   box.copy(bundle, o.remote_file);
+  if (o.allow_downgrade) {
+    say("allowing one downgrade (" + std::string(kAllowDowngradeFlag) + ")");
+    box.ssh_checked("mkdir -p /run/dentmark && touch " + std::string(kAllowDowngradeFlag), "allow downgrade",
+                    60.0);
+  }
   say("rauc install (the box checks signature, compatible and version)");
   const std::string file = quoted(o.remote_file);
   const process::Result install =

@@ -59,6 +59,7 @@ struct UpdateOptions {
   std::string remote_file = "/data/update.raucb";  // on the box's data partition
   double timeout = 1800.0;                         // s for the whole update (install, reboot, settle)
   double poll_period = 5.0;                        // s between looks at the rebooting box
+  bool allow_downgrade = false;  // let the box's pre-install handler accept an older version, once
   std::vector<std::string> units = {"dentmark-health.service", "dentmark-mark-good.service"};
   std::function<void(const std::string&)> progress;  // one line per step
 };
