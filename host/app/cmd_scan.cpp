@@ -26,12 +26,6 @@
 namespace dentmark::cli {
 namespace {
 
-nlohmann::json rows_of(const Eigen::Isometry3d& t) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({t(r, 0), t(r, 1), t(r, 2), t(r, 3)});
-  return rows;
-}
-
 struct DetectArgs {
   std::string scan, units = "auto", config, out, json, report, ply;
   bool verbose = false;
@@ -192,9 +186,12 @@ int run_eval(const EvalArgs& a) {
   report::Evaluation total;
   try {
     for (std::size_t i = 0; i < a.truth.size(); ++i)
-      total.add(
-          report::evaluate(report::read_truth_json(a.truth[i]), report::read_defects_json(a.defects[i])));
+      total.add(report::evaluate(report::truth_for_evaluation(sim::scan::read_truth_file(a.truth[i])),
+                                 report::read_defects_json(a.defects[i])));
   } catch (const report::ReportError& e) {
+    log::error(e.what());
+    return 2;
+  } catch (const sim::scan::TruthFileError& e) {
     log::error(e.what());
     return 2;
   }
@@ -220,21 +217,18 @@ int run_synth(SynthArgs a) {
   ingest::Mesh mesh;
   mesh.vertices = std::move(scan.vertices);
   mesh.triangles = std::move(scan.triangles);
-  const report::TruthFile truth = report::truth_from_scan(scan);
-  const nlohmann::json meta = {{"seed", a.options.seed},
-                               {"spacing", a.options.spacing},
-                               {"noise", a.options.noise},
-                               {"outlier_fraction", a.options.outlier_fraction},
-                               {"dropouts", a.options.dropouts},
-                               {"holes", a.options.holes},
-                               {"shuffled", a.options.shuffle},
-                               // Where the scanned door sits in 'sls' (rows of the 4x4 T_sls_panel) and its
-                               // size: the station twin places the same door in the tracking cameras' view.
-                               {"T_sls_panel", rows_of(scan.T_sls_panel)},
-                               {"panel_size", {a.options.shape.width, a.options.shape.height}}};
+  const nlohmann::json generator = {
+      {"seed", a.options.seed},         {"spacing", a.options.spacing},
+      {"noise", a.options.noise},       {"outlier_fraction", a.options.outlier_fraction},
+      {"dropouts", a.options.dropouts}, {"holes", a.options.holes},
+      {"shuffled", a.options.shuffle}};
+  // The door's pose and size go with it: the station twin places the same door in the
+  // tracking cameras' view.
+  const sim::scan::TruthFile truth =
+      sim::scan::truth_of(scan, a.options.shape.width, a.options.shape.height, generator);
   try {
     ingest::write_ply(a.out, mesh);
-    if (!a.truth.empty()) report::write_text_file(a.truth, report::truth_to_json(truth, meta).dump(1) + "\n");
+    if (!a.truth.empty()) report::write_text_file(a.truth, sim::scan::truth_to_json(truth).dump(1) + "\n");
   } catch (const std::exception& e) {
     log::error(e.what());
     return 1;

@@ -2,20 +2,27 @@
 
 namespace dentmark::report {
 
-TruthFile truth_from_scan(const sim::scan::SynthScan& scan) {
-  TruthFile truth;
-  truth.panel_area = scan.panel_area;
-  for (const auto& d : scan.defects) {
+TruthFile truth_for_evaluation(const sim::scan::TruthFile& truth) {
+  TruthFile t;
+  t.panel_area = truth.panel_area;
+  t.features = truth.features;
+  for (const sim::scan::TruthDefect& d : truth.defects) {
     LabelledDefect l;
     l.defect_class = d.defect_class;
+    l.defect.defect_class = d.defect_class == "dent"   ? protocol::DefectClass::kDent
+                            : d.defect_class == "bump" ? protocol::DefectClass::kBump
+                                                       : protocol::DefectClass::kHole;
     l.defect.position = d.position;
     l.defect.normal = d.normal;
     l.defect.diameter = d.diameter;
     l.defect.height = d.height;
-    truth.defects.push_back(l);
+    t.defects.push_back(l);
   }
-  for (const auto& f : scan.features) truth.features.push_back({f.name, f.points, f.radius});
-  return truth;
+  return t;
+}
+
+TruthFile truth_from_scan(const sim::scan::SynthScan& scan) {
+  return truth_for_evaluation(sim::scan::truth_of(scan, 0.0, 0.0));
 }
 
 }  // namespace dentmark::report

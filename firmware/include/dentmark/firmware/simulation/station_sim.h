@@ -13,16 +13,11 @@
 
 #include "dentmark/common/protocol/messages.h"
 #include "dentmark/firmware/simulation/workcell.h"
+#include "dentmark/sim/scan/sls_scan.h"
 
 namespace dentmark::simulation {
 
-struct TruthDefect {
-  std::string defect_class;                            // "dent", "bump", ...
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // sls, m
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();   // sls, unit, outward
-  double diameter = 0.0;
-  double height = 0.0;
-};
+using TruthDefect = sim::scan::TruthDefect;  // in sls
 
 // What the scan's truth file says about the scanned door.
 struct ScanTruth {

@@ -1,7 +1,6 @@
 #pragma once
-// JSON defect lists, schema "dentmark.defects/1" (docs/detection.md), and the
-// synthetic ground truth, schema "dentmark.truth/1". Files are written to a temporary
-// name and renamed.
+// JSON defect lists, schema "dentmark.defects/1" (docs/detection.md). Files are
+// written to a temporary name and renamed.
 
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -48,20 +47,5 @@ struct DefectsFile {
 // Reads a defects JSON ("dentmark.defects/1"). Throws ReportError "FILE: byte N: ..." or
 // "FILE: field F: ...".
 DefectsFile read_defects_json(const std::string& path);
-
-struct TruthFeature {
-  std::string name;
-  std::vector<Eigen::Vector3d> points;
-  double radius = 0.0;
-};
-
-struct TruthFile {
-  std::vector<LabelledDefect> defects;
-  std::vector<TruthFeature> features;
-  double panel_area = 0.0;
-};
-
-TruthFile read_truth_json(const std::string& path);
-nlohmann::json truth_to_json(const TruthFile& truth, const nlohmann::json& meta);
 
 }  // namespace dentmark::report

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "dentmark/host/report/defects_json.h"
+#include "dentmark/host/report/scan_truth.h"
 
 namespace dentmark::report {
 
