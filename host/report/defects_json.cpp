@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "dentmark/common/atomic_file.h"
+#include "dentmark/common/json_file.h"
 
 namespace dentmark::report {
 namespace {
@@ -39,22 +40,8 @@ nlohmann::json item(const detect::Finding& f) {
           {"reason", f.reason}};
 }
 
-nlohmann::json load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ReportError(path + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  try {
-    return nlohmann::json::parse(ss.str());
-  } catch (const nlohmann::json::parse_error& e) {
-    throw ReportError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
-  }
-}
-
 double number(const nlohmann::json& j, const char* key, const std::string& where) {
-  if (!j.is_object() || !j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>()))
-    throw ReportError(where + "." + key + ": missing or not a finite number");
-  return j[key].get<double>();
+  return json_file::finite_number<ReportError>(j, key, where);
 }
 
 Eigen::Vector3d vec3(const nlohmann::json& j, const char* key, const std::string& where) {
@@ -158,7 +145,7 @@ void write_text_file(const std::string& path, const std::string& text) {
 }
 
 DefectsFile read_defects_json(const std::string& path) {
-  const nlohmann::json root = load(path);
+  const nlohmann::json root = json_file::read<ReportError>(path);
   if (!root.is_object() || root.value("schema", "") != "dentmark.defects/1")
     throw ReportError(path + ": field schema: expected \"dentmark.defects/1\"");
   DefectsFile f;

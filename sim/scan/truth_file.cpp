@@ -1,30 +1,14 @@
 #include "dentmark/sim/scan/truth_file.h"
 
-#include <cmath>
-#include <fstream>
-#include <sstream>
+#include "dentmark/common/json_file.h"
 
 namespace dentmark::sim::scan {
 namespace {
 
 constexpr const char* kSchema = "dentmark.truth/1";
 
-nlohmann::json load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw TruthFileError(path + ": cannot open");
-  std::stringstream text;
-  text << in.rdbuf();
-  try {
-    return nlohmann::json::parse(text.str());
-  } catch (const nlohmann::json::parse_error& e) {
-    throw TruthFileError(path + ": byte " + std::to_string(e.byte) + ": not valid JSON");
-  }
-}
-
 double number(const nlohmann::json& j, const char* key, const std::string& where) {
-  if (!j.is_object() || !j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>()))
-    throw TruthFileError(where + "." + key + ": missing or not a finite number");
-  return j[key].get<double>();
+  return json_file::finite_number<TruthFileError>(j, key, where);
 }
 
 Eigen::Vector3d point(const nlohmann::json& j, const std::string& where) {
@@ -113,7 +97,7 @@ TruthFile truth_of(const SynthScan& scan, double panel_width, double panel_heigh
 }
 
 TruthFile read_truth_file(const std::string& path) {
-  const nlohmann::json root = load(path);
+  const nlohmann::json root = json_file::read<TruthFileError>(path);
   const std::string where = path + ": field ";
   if (!root.is_object() || root.value("schema", "") != kSchema)
     throw TruthFileError(where + "schema: expected \"" + kSchema + "\"");
