@@ -225,50 +225,45 @@ FrameResult Tracker::skip(double t, long index, const std::string& why) {
   return r;
 }
 
-FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, double t, long index) {
-  if (!started_) throw TrackError("tracker: track() before start()");
-  const cv::Mat left = as_grey(left_in), right = as_grey(right_in);
-  check_size(left, calib_.size, "left");
-  check_size(right, calib_.size, "right");
-  const std::size_t n = reference_.size();
-  const std::vector<Eigen::Vector3d> ref = reference_.points();
+namespace {
 
-  // Constant-velocity prediction: where each feature should be now, in both cameras.
-  const Transform predicted = filter_.predict(t);
-  std::vector<Eigen::Vector3d> xp(n);
-  for (std::size_t i = 0; i < n; ++i) xp[i] = predicted * ref[i];
-  const std::vector<cv::Point2f> gl = calib_.project(Cam::kLeft, xp), gr = calib_.project(Cam::kRight, xp);
-  // One pyramid per image, over the part where the features can be (LK's reach around
-  // their last and predicted positions): a tenth to a third of a 1280 x 1024 frame.
-  auto region = [&](const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b) {
-    const int reach = opt_.lk.window * (1 << opt_.lk.levels) / 2 + 2 * opt_.lk.window + 16;
-    float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
-    for (const auto* v : {&a, &b})
-      for (const auto& p : *v)
-        if (std::isfinite(p.x) && std::isfinite(p.y))
-          x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
-    if (x1 < x0) return cv::Rect();
-    return cv::Rect(cv::Point(static_cast<int>(x0) - reach, static_cast<int>(y0) - reach),
-                    cv::Point(static_cast<int>(x1) + reach + 1, static_cast<int>(y1) + reach + 1));
-  };
-  const ImagePyramid pl(left, opt_.lk, region(gl, left_)), pr(right, opt_.lk, region(gr, right_));
+// The part of an image where features can be found this frame: LK's reach around their
+// last (a) and predicted (b) positions; a tenth to a third of a 1280 x 1024 frame.
+cv::Rect search_region(const LkOptions& lk, const std::vector<cv::Point2f>& a,
+                       const std::vector<cv::Point2f>& b) {
+  const int reach = lk.window * (1 << lk.levels) / 2 + 2 * lk.window + 16;
+  float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
+  for (const auto* v : {&a, &b})
+    for (const auto& p : *v)
+      if (std::isfinite(p.x) && std::isfinite(p.y))
+        x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+  if (x1 < x0) return cv::Rect();
+  return cv::Rect(cv::Point(static_cast<int>(x0) - reach, static_cast<int>(y0) - reach),
+                  cv::Point(static_cast<int>(x1) + reach + 1, static_cast<int>(y1) + reach + 1));
+}
 
-  std::vector<Eigen::Vector3d> current(n, Eigen::Vector3d::Zero());
-  std::vector<bool> valid(n, false);
-  auto follow = [&](const ImagePyramid& prev, const ImagePyramid& cur, const cv::Point2f& from,
-                    const cv::Point2f& guess, const GridTemplate& templ) -> std::optional<cv::Point2f> {
-    const auto fwd = track_lk(prev, cur, from, guess, opt_.lk);
-    if (!fwd) return std::nullopt;
-    const auto back = track_lk(cur, prev, *fwd, from, opt_.lk);
-    if (!back || cv::norm(*back - from) > opt_.max_fb_error) return std::nullopt;
-    // Refine against the first frame's template: drift-free and lighting-proof.
-    AlignOptions ao;
-    ao.max_shift = opt_.max_subpix_shift;
-    const auto c = align_template(cur.image(), templ.patch, *fwd - templ.offset, ao);
-    if (!c || c->ncc < opt_.min_appearance_ncc) return std::nullopt;
-    return c->position + templ.offset;
-  };
-  for (std::size_t i = 0; i < n; ++i) {
+}  // namespace
+
+std::optional<cv::Point2f> Tracker::follow(const ImagePyramid& prev, const ImagePyramid& cur,
+                                           const cv::Point2f& from, const cv::Point2f& guess,
+                                           const GridTemplate& templ) const {
+  const auto fwd = track_lk(prev, cur, from, guess, opt_.lk);
+  if (!fwd) return std::nullopt;
+  const auto back = track_lk(cur, prev, *fwd, from, opt_.lk);
+  if (!back || cv::norm(*back - from) > opt_.max_fb_error) return std::nullopt;
+  // Refine against the first frame's template: drift-free and lighting-proof.
+  AlignOptions ao;
+  ao.max_shift = opt_.max_subpix_shift;
+  const auto c = align_template(cur.image(), templ.patch, *fwd - templ.offset, ao);
+  if (!c || c->ncc < opt_.min_appearance_ncc) return std::nullopt;
+  return c->position + templ.offset;
+}
+
+void Tracker::follow_features(const ImagePyramid& pl, const ImagePyramid& pr,
+                              const std::vector<cv::Point2f>& gl, const std::vector<cv::Point2f>& gr,
+                              const Transform& predicted, std::vector<Eigen::Vector3d>& current,
+                              std::vector<bool>& valid) {
+  for (std::size_t i = 0; i < current.size(); ++i) {
     if (!active_[i]) continue;
     const auto l = follow(prev_left_, pl, left_[i], gl[i], template_now(i, Cam::kLeft, predicted));
     const auto r =
@@ -284,42 +279,67 @@ FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, doub
   }
   // Geometric check against the reference layout (rigid: distances are kept).
   const std::vector<double> dis = reference_.distance_disagreement(current, valid);
-  for (std::size_t i = 0; i < n; ++i)
+  for (std::size_t i = 0; i < current.size(); ++i)
     if (valid[i] && dis[i] > disagreement_limit()) valid[i] = false;
+}
 
+bool Tracker::reacquire_lost(const Transform& motion, const ImagePyramid& pl, const ImagePyramid& pr,
+                             std::vector<Eigen::Vector3d>& current, std::vector<bool>& valid) {
+  bool any = false;
+  for (std::size_t i = 0; i < current.size(); ++i)
+    if (!valid[i] && reacquire(i, motion, pl, pr, current[i])) valid[i] = any = true;
+  return any;
+}
+
+void Tracker::accept(FrameResult& result, double t, const std::vector<Eigen::Vector3d>& current,
+                     const std::vector<bool>& valid) {
+  const std::size_t n = current.size();
+  const double spread = [&] {
+    const Eigen::Vector3d c = reference_.centroid();
+    double s = 0.0;
+    for (const auto& p : reference_.points()) s += (p - c).squaredNorm();
+    return std::sqrt(s / static_cast<double>(n));
+  }();
+  // Only frames that see most of the panel refine the layout: their motion is well
+  // determined, so mapping their features back adds little error of its own.
+  if (result.features >= opt_.refine_min_share * static_cast<double>(n))
+    refine_reference(current, valid, result.raw_motion);
+  rms_ema_ = rms_ema_ > 0.0 ? 0.9 * rms_ema_ + 0.1 * result.rms : result.rms;
+  const double sigma_point = std::max(rms_ema_, opt_.robust.noise_floor * 0.5);
+  const double k = 1.0 / std::sqrt(static_cast<double>(result.features));
+  result.motion = filter_.update(t, result.raw_motion, Eigen::Vector3d::Constant(sigma_point * k / spread),
+                                 Eigen::Vector3d::Constant(sigma_point * k));
+}
+
+FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, double t, long index) {
+  if (!started_) throw TrackError("tracker: track() before start()");
+  const cv::Mat left = as_grey(left_in), right = as_grey(right_in);
+  check_size(left, calib_.size, "left");
+  check_size(right, calib_.size, "right");
+  const std::size_t n = reference_.size();
+
+  // Constant-velocity prediction: where each feature should be now, in both cameras.
+  const Transform predicted = filter_.predict(t);
+  std::vector<Eigen::Vector3d> xp(n);
+  const std::vector<Eigen::Vector3d> ref = reference_.points();
+  for (std::size_t i = 0; i < n; ++i) xp[i] = predicted * ref[i];
+  const std::vector<cv::Point2f> gl = calib_.project(Cam::kLeft, xp), gr = calib_.project(Cam::kRight, xp);
+  const ImagePyramid pl(left, opt_.lk, search_region(opt_.lk, gl, left_));
+  const ImagePyramid pr(right, opt_.lk, search_region(opt_.lk, gr, right_));
+
+  std::vector<Eigen::Vector3d> current(n, Eigen::Vector3d::Zero());
+  std::vector<bool> valid(n, false);
+  follow_features(pl, pr, gl, gr, predicted, current, valid);
   FrameResult result = fit_and_filter(index, t, current, valid);
-  if (!result.ok) {
-    // Everything was lost (e.g. a full occlusion): look again where the prediction says.
-    bool any = false;
-    for (std::size_t i = 0; i < n; ++i)
-      if (!valid[i] && reacquire(i, predicted, pl, pr, current[i])) valid[i] = any = true;
-    if (any) result = fit_and_filter(index, t, current, valid);
-  }
+  // Everything lost (e.g. a full occlusion): look again where the prediction says.
+  if (!result.ok && reacquire_lost(predicted, pl, pr, current, valid))
+    result = fit_and_filter(index, t, current, valid);
+  // Re-acquire lost features near their positions under this frame's motion.
+  if (result.ok && reacquire_lost(result.raw_motion, pl, pr, current, valid))
+    result = fit_and_filter(index, t, current, valid);
+  active_ = valid;
   if (result.ok) {
-    // Re-acquire lost features near their positions under this frame's motion.
-    bool any = false;
-    for (std::size_t i = 0; i < n; ++i)
-      if (!valid[i] && reacquire(i, result.raw_motion, pl, pr, current[i])) valid[i] = any = true;
-    if (any) result = fit_and_filter(index, t, current, valid);
-  }
-  for (std::size_t i = 0; i < n; ++i) active_[i] = valid[i];
-  if (result.ok) {
-    // Keep filter state only from accepted fits.
-    const double spread = [&] {
-      const Eigen::Vector3d c = reference_.centroid();
-      double s = 0.0;
-      for (const auto& p : ref) s += (p - c).squaredNorm();
-      return std::sqrt(s / static_cast<double>(n));
-    }();
-    // Only frames that see most of the panel refine the layout: their motion is well
-    // determined, so mapping their features back adds little error of its own.
-    if (result.features >= opt_.refine_min_share * static_cast<double>(n))
-      refine_reference(current, valid, result.raw_motion);
-    rms_ema_ = rms_ema_ > 0.0 ? 0.9 * rms_ema_ + 0.1 * result.rms : result.rms;
-    const double sigma_point = std::max(rms_ema_, opt_.robust.noise_floor * 0.5);
-    const double k = 1.0 / std::sqrt(static_cast<double>(result.features));
-    result.motion = filter_.update(t, result.raw_motion, Eigen::Vector3d::Constant(sigma_point * k / spread),
-                                   Eigen::Vector3d::Constant(sigma_point * k));
+    accept(result, t, current, valid);  // filter state only from accepted fits
   } else {
     result.motion = predicted;
     result.raw_motion = predicted;

@@ -11,6 +11,7 @@
 // positions; then the motion filter. M(k) maps camL at the first frame to camL at k.
 
 #include <opencv2/core.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "dentmark/firmware/track/robust_motion.h"
 #include "dentmark/firmware/track/stereo_calibration.h"
 #include "dentmark/firmware/track/stereo_match.h"
+#include "dentmark/firmware/track/template_align.h"
 
 namespace dentmark::track {
 
@@ -80,6 +82,22 @@ class Tracker {
   const std::vector<bool>& tracked() const { return active_; }
 
  private:
+  // A feature from the previous pyramid to the current one: LK forward and back, then
+  // aligned to its first-frame template 'templ'; nullopt when any check fails.
+  std::optional<cv::Point2f> follow(const ImagePyramid& prev, const ImagePyramid& cur,
+                                    const cv::Point2f& from, const cv::Point2f& guess,
+                                    const GridTemplate& templ) const;
+  // Follows every active feature in both cameras (predicted at gl, gr), triangulates it
+  // and drops those that break the reference layout's distances.
+  void follow_features(const ImagePyramid& pl, const ImagePyramid& pr, const std::vector<cv::Point2f>& gl,
+                       const std::vector<cv::Point2f>& gr, const Transform& predicted,
+                       std::vector<Eigen::Vector3d>& current, std::vector<bool>& valid);
+  // Looks for each lost feature near where 'motion' puts it; true if any came back.
+  bool reacquire_lost(const Transform& motion, const ImagePyramid& pl, const ImagePyramid& pr,
+                      std::vector<Eigen::Vector3d>& current, std::vector<bool>& valid);
+  // An accepted fit: refines the reference layout and updates the motion filter.
+  void accept(FrameResult& result, double t, const std::vector<Eigen::Vector3d>& current,
+              const std::vector<bool>& valid);
   FrameResult fit_and_filter(long index, double t, std::vector<Eigen::Vector3d>& current,
                              std::vector<bool>& valid);
   bool reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left, const ImagePyramid& right,
