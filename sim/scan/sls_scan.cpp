@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -63,9 +64,7 @@ std::vector<Eigen::Vector3d> place_holes(const ScanOptions& o, const DoorPanel& 
   return out;
 }
 
-}  // namespace
-
-SynthScan synthesize_scan(const ScanOptions& o) {
+void check_options(const ScanOptions& o) {
   if (!(o.spacing > 1e-5 && o.spacing < 0.05))
     throw std::invalid_argument("spacing must be in (0.01 mm, 50 mm)");
   if (!(o.noise >= 0.0 && o.noise < 0.01)) throw std::invalid_argument("noise must be in [0, 10 mm)");
@@ -79,16 +78,28 @@ SynthScan synthesize_scan(const ScanOptions& o) {
   if (!(o.rim >= 0.0 && o.rim <= 1.0)) throw std::invalid_argument("rim must be in [0, 1]");
   if (!(o.outlier_fraction >= 0.0 && o.outlier_fraction <= 0.1))
     throw std::invalid_argument("outlier fraction must be in [0, 0.1]");
+  if (o.shape.width * o.shape.height / (o.spacing * o.spacing) > 6e7)
+    throw std::invalid_argument("scan would exceed 60 M points; raise the spacing");
+}
+
+// The sensor and its grid of rays: the sensor at C looks at the panel centre from
+// 'standoff', tilted up to 12 degrees; ray (r, c) has the direction (u0 + c step,
+// v0 + r step, 1) in 'sls', and the grid covers the panel's corners.
+struct SensorGrid {
+  Eigen::Vector3d C;            // the sensor, panel frame
+  Eigen::Matrix3d R_panel_sls;  // sls axes in the panel frame
+  Eigen::Isometry3d T_sls_panel;
+  double u0 = 0.0, v0 = 0.0, step = 0.0;
+  std::size_t rows = 0, cols = 0;
+
+  Eigen::Vector3d ray_sls(std::size_t r, std::size_t c) const {
+    return Eigen::Vector3d(u0 + static_cast<double>(c) * step, v0 + static_cast<double>(r) * step, 1.0)
+        .normalized();
+  }
+};
+
+SensorGrid place_sensor(const ScanOptions& o, const DoorPanel& panel, std::mt19937_64& rng) {
   const double W = o.shape.width, H = o.shape.height;
-  const double cells = W * H / (o.spacing * o.spacing);
-  if (cells > 6e7) throw std::invalid_argument("scan would exceed 60 M points; raise the spacing");
-
-  std::mt19937_64 rng(splitmix(o.seed));
-  const DoorPanel probe(o.shape, {});
-  const DoorPanel panel(o.shape, place_defects(o, probe, rng));
-  const std::vector<Eigen::Vector3d> holes = place_holes(o, panel, rng);
-
-  // Sensor pose: looking at the panel centre from 'standoff', tilted up to 12 degrees.
   std::uniform_real_distribution<double> tilt(-12.0, 12.0);
   const double yaw = tilt(rng) * std::numbers::pi / 180.0, pitch = tilt(rng) * std::numbers::pi / 180.0;
   const Eigen::Vector3d centre(0.5 * W, 0.5 * H, panel.z_nominal(0.5 * W, 0.5 * H));
@@ -96,124 +107,147 @@ SynthScan synthesize_scan(const ScanOptions& o) {
       (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()))
           .toRotationMatrix() *
       Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d C = centre + o.standoff * back;
+  SensorGrid g;
+  g.C = centre + o.standoff * back;
   const Eigen::Vector3d zc = -back;
   const Eigen::Vector3d xc = (Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(zc) * zc).normalized();
   const Eigen::Vector3d yc = zc.cross(xc);
-  Eigen::Matrix3d R_panel_sls;
-  R_panel_sls << xc, yc, zc;
+  g.R_panel_sls << xc, yc, zc;
   Eigen::Isometry3d T_panel_sls = Eigen::Isometry3d::Identity();
-  T_panel_sls.linear() = R_panel_sls;
-  T_panel_sls.translation() = C;
-  const Eigen::Isometry3d T_sls_panel = T_panel_sls.inverse();
+  T_panel_sls.linear() = g.R_panel_sls;
+  T_panel_sls.translation() = g.C;
+  g.T_sls_panel = T_panel_sls.inverse();
 
   // Image extent from the panel corners.
   double u0 = 1e9, u1 = -1e9, v0 = 1e9, v1 = -1e9;
   for (double cx : {0.0, W})
     for (double cy : {0.0, H}) {
-      const Eigen::Vector3d p = T_sls_panel * Eigen::Vector3d(cx, cy, panel.z_nominal(cx, cy));
+      const Eigen::Vector3d p = g.T_sls_panel * Eigen::Vector3d(cx, cy, panel.z_nominal(cx, cy));
       u0 = std::min(u0, p.x() / p.z()), u1 = std::max(u1, p.x() / p.z());
       v0 = std::min(v0, p.y() / p.z()), v1 = std::max(v1, p.y() / p.z());
     }
-  const double step = o.spacing / o.standoff;
-  const auto cols = static_cast<std::size_t>((u1 - u0) / step) + 2,
-             rows = static_cast<std::size_t>((v1 - v0) / step) + 2;
+  g.u0 = u0, g.v0 = v0;
+  g.step = o.spacing / o.standoff;
+  g.cols = static_cast<std::size_t>((u1 - u0) / g.step) + 2;
+  g.rows = static_cast<std::size_t>((v1 - v0) / g.step) + 2;
+  return g;
+}
 
-  // Dropouts: discs of missing data.
-  std::vector<Eigen::Vector3d> drops;  // x, y, r
-  for (int k = 0; k < o.dropouts; ++k) {
-    std::uniform_real_distribution<double> ux(0.0, W), uy(0.0, H), ur(0.002, 0.006);
-    drops.emplace_back(ux(rng), uy(rng), ur(rng));
+// Newton's iteration for f(t) = 0 from t; false when it does not converge.
+template <class F>
+bool newton(F&& f, double& t) {
+  for (int it = 0; it < 12; ++it) {
+    const double ft = f(t);
+    if (std::abs(ft) < 1e-10) return true;
+    const double e = 1e-6, df = (f(t + e) - f(t - e)) / (2 * e);
+    if (!(std::abs(df) > 1e-6)) return false;
+    t -= ft / df;
   }
+  return false;
+}
 
-  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::vector<Eigen::Vector3f> grid(rows * cols);
-  std::vector<std::uint8_t> valid(rows * cols, 0);
+// The first sign change of g past a, in 0.5 mm steps up to 0.2 m, then bisected.
+template <class F>
+std::optional<double> bracket_root(F&& g, double a) {
+  double ga = g(a);
+  for (double b = a + 0.0005; b < a + 0.2; b += 0.0005) {
+    const double gb = g(b);
+    if ((ga > 0) != (gb > 0)) {
+      for (int it = 0; it < 40; ++it) {
+        const double m = 0.5 * (a + b), gm = g(m);
+        if ((gm > 0) == (ga > 0))
+          a = m, ga = gm;
+        else
+          b = m;
+      }
+      return 0.5 * (a + b);
+    }
+    a = b, ga = gb;
+  }
+  return std::nullopt;
+}
+
+// Where ray d (panel frame) from the sensor meets the skin, or the inner structure
+// behind a through-hole; nullopt off the panel.
+std::optional<Eigen::Vector3d> cast_ray(const ScanOptions& o, const DoorPanel& panel,
+                                        const std::vector<Eigen::Vector3d>& holes, const SensorGrid& g,
+                                        const Eigen::Vector3d& d, double& t) {
+  const Eigen::Vector3d& C = g.C;
+  const double z_centre = panel.z_nominal(0.5 * o.shape.width, 0.5 * o.shape.height);
+  auto skin = [&](double s) {
+    const Eigen::Vector3d p = C + s * d;
+    return p.z() - panel.z(p.x(), p.y());
+  };
+  // Newton from the nominal plane; bracketing fallback on steep walls.
+  t = (z_centre - C.z()) / d.z();
+  if (!newton(skin, t)) {
+    const std::optional<double> root = bracket_root(skin, (z_centre + 0.04 - C.z()) / d.z());
+    if (!root) return std::nullopt;
+    t = *root;
+  }
+  Eigen::Vector3d p = C + t * d;
+  if (!panel.inside(p.x(), p.y())) return std::nullopt;
+  for (const auto& hole : holes)
+    if (std::hypot(p.x() - hole.x(), p.y() - hole.y()) < 0.5 * hole.z()) {
+      // Through the hole onto the inner structure behind the skin.
+      const bool ok = newton(
+          [&](double s) {
+            const Eigen::Vector3d q = C + s * d;
+            return q.z() - (panel.z_nominal(q.x(), q.y()) - o.hole_backdrop);
+          },
+          t);
+      if (!ok) return std::nullopt;
+      p = C + t * d;
+      break;
+    }
+  return p;
+}
+
+// The sensor's range image: each ray's point in 'sls', with range noise and outliers,
+// or invalid (off the panel, in a dropout). Row r draws from its own seed, so rows can
+// run in parallel and the result does not depend on the thread count.
+void sample_range_grid(const ScanOptions& o, const DoorPanel& panel,
+                       const std::vector<Eigen::Vector3d>& holes, const std::vector<Eigen::Vector3d>& drops,
+                       const SensorGrid& g, std::vector<Eigen::Vector3f>& grid,
+                       std::vector<std::uint8_t>& valid) {
+  grid.assign(g.rows * g.cols, Eigen::Vector3f::Zero());
+  valid.assign(g.rows * g.cols, 0);
   const std::uint64_t base_seed = splitmix(o.seed ^ 0xabcdef12345ull);
 #pragma omp parallel for schedule(dynamic, 16)
-  for (std::int64_t r = 0; r < static_cast<std::int64_t>(rows); ++r) {
+  for (std::int64_t r = 0; r < static_cast<std::int64_t>(g.rows); ++r) {
     std::mt19937_64 rr(splitmix(base_seed + static_cast<std::uint64_t>(r)));
     std::normal_distribution<double> gauss(0.0, 1.0);
     std::uniform_real_distribution<double> u01(0.0, 1.0);
-    for (std::size_t c = 0; c < cols; ++c) {
-      const Eigen::Vector3d dir_sls =
-          Eigen::Vector3d(u0 + static_cast<double>(c) * step, v0 + static_cast<double>(r) * step, 1.0)
-              .normalized();
-      const Eigen::Vector3d d = R_panel_sls * dir_sls;
-      auto g = [&](double t) {
-        const Eigen::Vector3d p = C + t * d;
-        return p.z() - panel.z(p.x(), p.y());
-      };
-      // Newton from the nominal plane; bracketing fallback on steep walls.
-      double t = (centre.z() - C.z()) / d.z();
-      bool ok = false;
-      auto newton = [&](auto&& f) {
-        for (int it = 0; it < 12; ++it) {
-          const double ft = f(t);
-          if (std::abs(ft) < 1e-10) return true;
-          const double e = 1e-6, df = (f(t + e) - f(t - e)) / (2 * e);
-          if (!(std::abs(df) > 1e-6)) return false;
-          t -= ft / df;
-        }
-        return false;
-      };
-      ok = newton(g);
-      if (!ok) {
-        double a = (centre.z() + 0.04 - C.z()) / d.z(), ga = g(a);
-        ok = false;
-        for (double b = a + 0.0005; b < a + 0.2; b += 0.0005) {
-          const double gb = g(b);
-          if ((ga > 0) != (gb > 0)) {
-            for (int it = 0; it < 40; ++it) {
-              const double m = 0.5 * (a + b), gm = g(m);
-              if ((gm > 0) == (ga > 0))
-                a = m, ga = gm;
-              else
-                b = m;
-            }
-            t = 0.5 * (a + b);
-            ok = true;
-            break;
-          }
-          a = b, ga = gb;
-        }
-      }
-      if (!ok) continue;
-      Eigen::Vector3d p = C + t * d;
-      if (!panel.inside(p.x(), p.y())) continue;
-      for (const auto& hole : holes)
-        if (std::hypot(p.x() - hole.x(), p.y() - hole.y()) < 0.5 * hole.z()) {
-          // Through the hole onto the inner structure behind the skin.
-          ok = newton([&](double s) {
-            const Eigen::Vector3d q = C + s * d;
-            return q.z() - (panel.z_nominal(q.x(), q.y()) - o.hole_backdrop);
-          });
-          p = C + t * d;
-          break;
-        }
-      if (!ok) continue;
+    for (std::size_t c = 0; c < g.cols; ++c) {
+      const Eigen::Vector3d dir_sls = g.ray_sls(static_cast<std::size_t>(r), c);
+      double t = 0.0;
+      const std::optional<Eigen::Vector3d> p = cast_ray(o, panel, holes, g, g.R_panel_sls * dir_sls, t);
+      if (!p) continue;
       bool dropped = false;
       for (const auto& dr : drops)
-        if (std::hypot(p.x() - dr.x(), p.y() - dr.y()) < dr.z()) dropped = true;
+        if (std::hypot(p->x() - dr.x(), p->y() - dr.y()) < dr.z()) dropped = true;
       if (dropped) continue;
       double range = t + o.noise * gauss(rr);
       if (o.outlier_fraction > 0 && u01(rr) < o.outlier_fraction)
         range += (u01(rr) < 0.5 ? -1.0 : 1.0) * (0.002 + 0.018 * u01(rr));
-      grid[static_cast<std::size_t>(r) * cols + c] = (range * dir_sls).cast<float>();
-      valid[static_cast<std::size_t>(r) * cols + c] = 1;
+      grid[static_cast<std::size_t>(r) * g.cols + c] = (range * dir_sls).cast<float>();
+      valid[static_cast<std::size_t>(r) * g.cols + c] = 1;
     }
   }
+}
 
-  SynthScan scan;
-  scan.T_sls_panel = T_sls_panel;
+// The valid grid points as vertices, and two triangles per grid cell, none across a
+// depth jump (an edge longer than six spacings).
+void mesh_grid(const std::vector<Eigen::Vector3f>& grid, const std::vector<std::uint8_t>& valid,
+               std::size_t rows, std::size_t cols, double spacing, SynthScan& scan) {
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> index(rows * cols, kNone);
   for (std::size_t k = 0; k < rows * cols; ++k)
     if (valid[k]) {
       index[k] = static_cast<std::uint32_t>(scan.vertices.size());
       scan.vertices.push_back(grid[k]);
     }
-  // Mesh on the sensor grid; no triangle across a depth jump.
-  const float max_edge = static_cast<float>(6.0 * o.spacing);
+  const float max_edge = static_cast<float>(6.0 * spacing);
   auto ok = [&](std::uint32_t a, std::uint32_t b) {
     return (scan.vertices[a] - scan.vertices[b]).norm() <= max_edge;
   };
@@ -230,19 +264,25 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     scan.panel_area += 0.5 * static_cast<double>((scan.vertices[t[1]] - scan.vertices[t[0]])
                                                      .cross(scan.vertices[t[2]] - scan.vertices[t[0]])
                                                      .norm());
-  if (o.shuffle) {
-    std::vector<std::uint32_t> perm(scan.vertices.size());
-    std::iota(perm.begin(), perm.end(), 0u);
-    std::shuffle(perm.begin(), perm.end(), rng);
-    std::vector<Eigen::Vector3f> v(scan.vertices.size());
-    for (std::size_t i = 0; i < perm.size(); ++i) v[perm[i]] = scan.vertices[i];
-    scan.vertices.swap(v);
-    for (auto& t : scan.triangles)
-      for (auto& i : t) i = perm[i];
-    std::shuffle(scan.triangles.begin(), scan.triangles.end(), rng);
-  }
+}
 
-  // Ground truth in 'sls'.
+// Vertices and triangles in random order (as some scanner software writes them).
+void shuffle_mesh(SynthScan& scan, std::mt19937_64& rng) {
+  std::vector<std::uint32_t> perm(scan.vertices.size());
+  std::iota(perm.begin(), perm.end(), 0u);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  std::vector<Eigen::Vector3f> v(scan.vertices.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) v[perm[i]] = scan.vertices[i];
+  scan.vertices.swap(v);
+  for (auto& t : scan.triangles)
+    for (auto& i : t) i = perm[i];
+  std::shuffle(scan.triangles.begin(), scan.triangles.end(), rng);
+}
+
+// The planted dents, bumps and holes in 'sls'.
+std::vector<TruthDefect> truth_defects(const DoorPanel& panel, const std::vector<Eigen::Vector3d>& holes,
+                                       const Eigen::Isometry3d& T_sls_panel) {
+  std::vector<TruthDefect> out;
   for (const PlantedDefect& d : panel.defects()) {
     TruthDefect t;
     t.defect_class = d.height < 0 ? "dent" : "bump";
@@ -254,7 +294,7 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     // The defect is planted along the panel's z; its depth is measured along the
     // surface normal (as a gauge held normal to the panel reads it).
     t.height = d.height * n_panel.z();
-    scan.defects.push_back(t);
+    out.push_back(t);
   }
   for (const Eigen::Vector3d& h : holes) {
     TruthDefect t;
@@ -263,8 +303,16 @@ SynthScan synthesize_scan(const ScanOptions& o) {
     t.normal = T_sls_panel.linear() * panel.normal(h.x(), h.y());
     t.diameter = h.z();
     t.height = 0.0;
-    scan.defects.push_back(t);
+    out.push_back(t);
   }
+  return out;
+}
+
+// The design features (handle, crease, border, window) as points every 10 mm in 'sls'.
+std::vector<TruthFeature> truth_features(const PanelShape& shape, const DoorPanel& panel,
+                                         const Eigen::Isometry3d& T_sls_panel) {
+  const double W = shape.width, H = shape.height;
+  std::vector<TruthFeature> out;
   auto feature_line = [&](const std::string& name, double radius, auto&& at, double len) {
     TruthFeature f;
     f.name = name;
@@ -274,14 +322,14 @@ SynthScan synthesize_scan(const ScanOptions& o) {
       if (q.x() < 0 || q.x() > W || q.y() < 0 || q.y() > H) continue;
       f.points.push_back(T_sls_panel * Eigen::Vector3d(q.x(), q.y(), panel.z_nominal(q.x(), q.y())));
     }
-    scan.features.push_back(std::move(f));
+    out.push_back(std::move(f));
   };
-  if (o.shape.handle) {
+  if (shape.handle) {
     const Eigen::Vector2d hc = panel.handle_centre();
     feature_line(
         "handle", 0.03, [&](double s) { return Eigen::Vector2d(hc.x() - 0.05 + s, hc.y()); }, 0.1);
   }
-  if (o.shape.crease)
+  if (shape.crease)
     feature_line(
         "crease", 0.02, [&](double s) { return Eigen::Vector2d(s, panel.crease_y(s)); }, W);
   feature_line(
@@ -295,7 +343,7 @@ SynthScan synthesize_scan(const ScanOptions& o) {
         return Eigen::Vector2d(0.0, per - s);
       },
       2 * (W + H));
-  if (o.shape.window) {
+  if (shape.window) {
     const double x0 = 0.1 * W, x1 = 0.9 * W, y0 = 0.68 * H, y1 = 0.93 * H, w = x1 - x0, h = y1 - y0;
     feature_line(
         "window", 0.02,
@@ -307,6 +355,35 @@ SynthScan synthesize_scan(const ScanOptions& o) {
         },
         2 * (w + h));
   }
+  return out;
+}
+
+}  // namespace
+
+SynthScan synthesize_scan(const ScanOptions& o) {
+  check_options(o);
+  // One generator for the whole panel, drawn from in this order: defects, holes, the
+  // sensor's tilt, the dropouts, the shuffle (the range noise has per-row seeds).
+  std::mt19937_64 rng(splitmix(o.seed));
+  const DoorPanel probe(o.shape, {});
+  const DoorPanel panel(o.shape, place_defects(o, probe, rng));
+  const std::vector<Eigen::Vector3d> holes = place_holes(o, panel, rng);
+  const SensorGrid sensor = place_sensor(o, panel, rng);
+  std::vector<Eigen::Vector3d> drops;  // discs of missing data: x, y, r
+  for (int k = 0; k < o.dropouts; ++k) {
+    std::uniform_real_distribution<double> ux(0.0, o.shape.width), uy(0.0, o.shape.height), ur(0.002, 0.006);
+    drops.emplace_back(ux(rng), uy(rng), ur(rng));
+  }
+
+  std::vector<Eigen::Vector3f> grid;
+  std::vector<std::uint8_t> valid;
+  sample_range_grid(o, panel, holes, drops, sensor, grid, valid);
+  SynthScan scan;
+  scan.T_sls_panel = sensor.T_sls_panel;
+  mesh_grid(grid, valid, sensor.rows, sensor.cols, o.spacing, scan);
+  if (o.shuffle) shuffle_mesh(scan, rng);
+  scan.defects = truth_defects(panel, holes, sensor.T_sls_panel);
+  scan.features = truth_features(o.shape, panel, sensor.T_sls_panel);
   return scan;
 }
 
