@@ -141,6 +141,15 @@ std::vector<std::string> words(const std::string& text) {
 // older bundle while this file exists, and removes it.
 constexpr const char* kAllowDowngradeFlag = "/run/dentmark/allow-downgrade";
 
+// `rauc install` of the copied bundle, which is then removed. When RAUC refuses, what
+// the box's handlers said is added from RAUC's journal ("# " lines): RAUC's own message
+// names only the handler that failed, not why.
+std::string install_command(const std::string& quoted_file) {
+  return "t=$(date +%s); rauc install " + quoted_file + "; rc=$?; rm -f " + quoted_file +
+         "; if [ $rc -ne 0 ]; then sleep 1; journalctl -u rauc.service --since=@$t -o cat --no-pager | "
+         "sed -n 's/^# //p'; fi; exit $rc";
+}
+
 }  // namespace
 
 UpdateResult update_box(const BoxAddress& address, const std::string& bundle, const UpdateOptions& o) {
@@ -172,8 +181,7 @@ UpdateResult update_box(const BoxAddress& address, const std::string& bundle, co
   }
   say("rauc install (the box checks signature, compatible and version)");
   const std::string file = quoted(o.remote_file);
-  const process::Result install =
-      box.ssh("rauc install " + file + "; rc=$?; rm -f " + file + "; exit $rc", 1800.0);
+  const process::Result install = box.ssh(install_command(file), 1800.0);
   if (install.exit_code != 0 || install.timed_out)
     throw UpdateError("the box refused the bundle: " + Box::last_lines(install.output));
   const RaucStatus installed = parse_rauc_status(box.ssh_checked(rauc_status, "rauc status", 120.0));
