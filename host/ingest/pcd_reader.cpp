@@ -3,7 +3,8 @@
 //   POINTS, DATA ascii | binary | binary_compressed
 // ('#' lines are comments), then the points:
 //   ascii              one point a line, every field's COUNT values in FIELDS order;
-//   binary             records of sum(SIZE * COUNT) bytes, fields in order, little-endian;
+//   binary             records of sum(SIZE * COUNT) bytes, fields in order, little-endian
+//                      (PCL pads the file to a whole memory page: what follows is not read);
 //   binary_compressed  uint32 compressed size, uint32 uncompressed size, then LZF of the
 //                      same bytes laid out field by field (all points' x, then all y, ...).
 // x, y and z (any numeric TYPE and SIZE) are read; normals, colours, curvature and PCL's
@@ -245,7 +246,8 @@ void read_records(const std::string& path, std::string_view data, std::size_t at
   }
   stride = before;
   const std::uint64_t need = h.points * stride;
-  if (data.size() != need)
+  // PCL pads a binary file to a whole memory page: bytes after the points are not read.
+  if (data.size() < need || (field_major && data.size() != need))
     throw IngestError(path + ": byte " + std::to_string(at + std::min<std::uint64_t>(data.size(), need)) +
                       ": " + std::to_string(h.points) + " points of " + std::to_string(stride) +
                       " bytes need " + std::to_string(need) + " bytes, the " +
@@ -282,9 +284,10 @@ void read_compressed(const std::string& path, std::string_view bytes, const PcdH
   std::memcpy(&unpacked, bytes.data() + at + 4, 4);
   packed = from_little_endian(packed), unpacked = from_little_endian(unpacked);
   const std::size_t stream = at + 8;
-  if (packed != bytes.size() - stream)
+  // (As binary, padded to a whole page: bytes after the compressed data are not read.)
+  if (packed > bytes.size() - stream)
     throw IngestError(path + ": byte " + std::to_string(at) + ": compressed size " + std::to_string(packed) +
-                      ", but " + std::to_string(bytes.size() - stream) + " bytes follow");
+                      ", but only " + std::to_string(bytes.size() - stream) + " bytes follow");
   std::size_t stride = 0;
   for (const Field& f : h.fields) stride += f.size * f.count;
   if (unpacked != h.points * stride)
@@ -298,7 +301,7 @@ void read_compressed(const std::string& path, std::string_view bytes, const PcdH
                       std::to_string(unpacked) + " from " + std::to_string(packed) +
                       " compressed bytes is more than LZF can give");
   std::string data(unpacked, '\0');
-  if (const auto error = lzf_decompress(bytes.substr(stream), data))
+  if (const auto error = lzf_decompress(bytes.substr(stream, packed), data))
     throw IngestError(path + ": byte " + std::to_string(stream + error->offset) +
                       ": bad LZF data: " + error->problem);
   read_records(path, data, stream, h, true, mesh);

@@ -139,6 +139,9 @@ TEST(ReadPcd, EveryEncodingGivesTheSamePoints) {
   expect_points(detail::read_pcd("a.pcd", ascii_pcd()));
   expect_points(detail::read_pcd("b.pcd", binary_pcd()));
   expect_points(detail::read_pcd("c.pcd", compressed_pcd()));
+  // PCL pads binary files to a whole memory page.
+  expect_points(detail::read_pcd("b4k.pcd", binary_pcd() + std::string(4096 - binary_pcd().size(), '\0')));
+  expect_points(detail::read_pcd("c4k.pcd", compressed_pcd() + std::string(100, '\0')));
   // Windows line ends, comments and blank lines in the header; v0.5's COLUMNS.
   std::string crlf;
   for (char c : ascii_pcd()) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
@@ -225,8 +228,7 @@ TEST(ReadPcd, ErrorsNameLineOrByteAndField) {
            {"e13.pcd", b.substr(0, b.size() - 1),
             "byte " + std::to_string(b.size() - 1) +
                 ": 4 points of 37 bytes need 148 bytes, the file has 147"},
-           {"e14.pcd", b + "x",
-            "byte " + std::to_string(b.size()) + ": 4 points of 37 bytes need 148 bytes, the file has 149"},
+
            {"e15.pcd", c.substr(0, stream + 3), "byte " + std::to_string(stream - 8) + ": compressed size"},
            {"e16.pcd", c.substr(0, stream - 5),
             "byte " + std::to_string(stream - 8) + ": file ends before binary_compressed's two sizes"},
