@@ -28,6 +28,8 @@
 namespace dentmark::ingest::detail {
 namespace {
 
+constexpr const char* kAxis[3] = {"x", "y", "z"};
+
 struct Field {
   std::string name;
   std::size_t size = 4;  // bytes of one value
@@ -160,14 +162,14 @@ PcdHeader parse_header(const std::string& path, std::string_view bytes) {
          " x " + std::to_string(h.height));
   for (std::size_t f = 0; f < h.fields.size(); ++f)
     for (int a = 0; a < 3; ++a)
-      if (h.fields[f].name == std::string_view("xyz" + a, 1)) {
+      if (h.fields[f].name == kAxis[a]) {
         if (h.xyz[a] >= 0) fail("a second field '" + h.fields[f].name + "'");
         if (h.fields[f].count != 1)
           fail("field '" + h.fields[f].name + "' has COUNT " + std::to_string(h.fields[f].count) + " (1)");
         h.xyz[a] = static_cast<int>(f);
       }
   for (int a = 0; a < 3; ++a)
-    if (h.xyz[a] < 0) fail(std::string("no field '") + "xyz"[a] + "' in FIELDS");
+    if (h.xyz[a] < 0) fail(std::string("no field '") + kAxis[a] + "' in FIELDS");
   return h;
 }
 
