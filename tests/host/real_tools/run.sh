@@ -2,19 +2,23 @@
 # Scans written by real tools give the same defects as the scan they were made from.
 # A synthetic door (dentmark synth scan) is written by PCL (pcl_converter: PLY, OBJ, STL,
 # PCD in each encoding; pcl_convert_pcd_ascii_binary: an organised PCD with NaN holes in
-# each encoding; pcl_mesh_sampling: a cloud sampled off the mesh) and by Open3D (meshes
-# and clouds in every format it writes); each file is read by 'dentmark detect' and its
-# defects compared with the original's (same_defects.py).
-# A tool that is missing fails the test: scripts/setup-deps installs pcl-tools and
-# python3-open3d.
+# each encoding; pcl_mesh_sampling: a cloud sampled off the mesh), by Open3D (meshes
+# and clouds in every format it writes), by CloudCompare (meshes as PLY, OBJ, STL; its
+# vertices as an ASC and a PLY cloud; headless on Qt's offscreen platform) and by MeshLab
+# (meshlabserver: PLY, OBJ, STL with normals, under xvfb-run: it needs an OpenGL
+# context); each file is read by 'dentmark detect' and its defects compared with the
+# original's (same_defects.py).
+# A tool that is missing fails the test: scripts/setup-deps installs pcl-tools,
+# python3-open3d, cloudcompare, meshlab and xvfb.
 # Usage: run.sh DENTMARK OUTDIR
 set -euo pipefail
 dentmark=$1
 out=$2
 here=$(cd "$(dirname "$0")" && pwd)
 py=/usr/bin/python3
-for tool in pcl_converter pcl_convert_pcd_ascii_binary pcl_mesh_sampling; do
-  command -v $tool >/dev/null || { echo "FAIL: $tool not found (scripts/setup-deps installs pcl-tools)"; exit 1; }
+for tool in pcl_converter pcl_convert_pcd_ascii_binary pcl_mesh_sampling CloudCompare meshlabserver xvfb-run; do
+  command -v $tool >/dev/null ||
+    { echo "FAIL: $tool not found (scripts/setup-deps installs pcl-tools, cloudcompare, meshlab, xvfb)"; exit 1; }
 done
 $py -c 'import open3d' 2>/dev/null || { echo "FAIL: no Open3D for $py (scripts/setup-deps installs python3-open3d)"; exit 1; }
 
@@ -39,11 +43,26 @@ pcl_mesh_sampling door.ply sampled.pcd -n_samples 1500000 -leaf_size 0.0005 -wri
   >>pcl.log 2>&1
 # Open3D.
 $py "$here/open3d_write.py" door.ply . >>open3d.log
+# CloudCompare.
+for fmt in PLY OBJ STL; do
+  QT_QPA_PLATFORM=offscreen CloudCompare -SILENT -NO_TIMESTAMP -O door.ply -M_EXPORT_FMT $fmt \
+    -SAVE_MESHES FILE "cc_mesh.${fmt,,}" >>cloudcompare.log 2>&1
+done
+for fmt in ASC PLY; do
+  QT_QPA_PLATFORM=offscreen CloudCompare -SILENT -NO_TIMESTAMP -O door.ply -EXTRACT_VERTICES -C_EXPORT_FMT $fmt \
+    -SAVE_CLOUDS FILE "cc_cloud.${fmt,,}" >>cloudcompare.log 2>&1
+done
+# MeshLab.
+for ext in ply obj stl; do
+  xvfb-run -a meshlabserver -i door.ply -o "ml_mesh.$ext" -m vn >>meshlab.log 2>&1
+done
 
 grep -q '^HEIGHT 1$' organised_lzf.pcd && { echo "FAIL: organised_lzf.pcd is not organised"; exit 1; }
 grep -q '^DATA binary_compressed' organised_lzf.pcd || { echo "FAIL: organised_lzf.pcd not compressed"; exit 1; }
 failed=0
-for f in pcl_* organised_* sampled.pcd o3d_*; do
+for f in pcl_*.{pcd,ply,obj,stl} organised_*.pcd sampled.pcd o3d_*.{ply,obj,stl,xyz,pcd} cc_*.{ply,obj,stl,asc} \
+  ml_*.{ply,obj,stl}; do
+  [[ -f $f ]] || { echo "FAIL: $f was not written"; failed=1; continue; }
   if ! "$dentmark" detect "$f" --out "$f.dml" --json "$f.json" >"$f.log" 2>&1; then
     echo "FAIL: $f: $(tail -1 "$f.log")"
     failed=1
