@@ -25,9 +25,9 @@ cv::Rect rect(const Box& b) {
   return {b.x, b.y, b.w, b.h};
 }
 
-void draw_text(cv::Mat& canvas, const TextItem& t, int x_pad = 0) {
+void draw_text(cv::Mat& canvas, const TextItem& t, int x_pad = 0, const cv::Scalar& colour = kBlack) {
   if (t.text.empty()) return;
-  cv::putText(canvas, t.text, {t.box.x + x_pad, t.baseline}, cv::FONT_HERSHEY_SIMPLEX, t.scale, kBlack,
+  cv::putText(canvas, t.text, {t.box.x + x_pad, t.baseline}, cv::FONT_HERSHEY_SIMPLEX, t.scale, colour,
               t.thickness, cv::LINE_AA);
 }
 
@@ -105,15 +105,22 @@ void draw_feature_outlines(cv::Mat& image, const PanelMap& panel, const detect::
   cv::addWeighted(overlay, kOutlineOpacity, image, 1.0 - kOutlineOpacity, 0.0, image);
 }
 
-void draw_ring(cv::Mat& canvas, cv::Point c, int radius) {
+// A defect's own ring is black on a white halo; an echo's thin grey.
+const cv::Scalar kEcho(110, 110, 110);
+
+void draw_ring(cv::Mat& canvas, cv::Point c, int radius, bool echo) {
+  if (echo) {
+    cv::circle(canvas, c, radius, kEcho, 1, cv::LINE_AA);
+    return;
+  }
   cv::circle(canvas, c, radius, kWhite, 4, cv::LINE_AA);  // a halo: visible on every colour
   cv::circle(canvas, c, radius, kBlack, 2, cv::LINE_AA);
 }
 
-void draw_number(cv::Mat& canvas, const TextItem& label) {
+void draw_number(cv::Mat& canvas, const TextItem& label, bool echo) {
   cv::rectangle(canvas, rect(label.box), kWhite, cv::FILLED);
-  cv::rectangle(canvas, rect(label.box), kBlack, 1);
-  draw_text(canvas, label, 4);
+  cv::rectangle(canvas, rect(label.box), echo ? kEcho : kBlack, 1);
+  draw_text(canvas, label, 4, echo ? kEcho : kBlack);
 }
 
 void draw_legend(cv::Mat& canvas, const LegendEntry& e) {
@@ -122,7 +129,11 @@ void draw_legend(cv::Mat& canvas, const LegendEntry& e) {
   switch (e.symbol) {
     case LegendEntry::Symbol::kDefectRing:
       swatch.setTo(cv::Scalar(jet(-0.6, 1.0)));
-      draw_ring(canvas, mid, e.swatch.h / 2 - 3);
+      draw_ring(canvas, mid, e.swatch.h / 2 - 3, false);
+      break;
+    case LegendEntry::Symbol::kDefectEcho:
+      swatch.setTo(cv::Scalar(jet(0.0, 1.0)));
+      draw_ring(canvas, mid, e.swatch.h / 2 - 3, true);
       break;
     case LegendEntry::Symbol::kFeatureOutline: {
       swatch.setTo(cv::Scalar(jet(0.0, 1.0)));
@@ -153,8 +164,8 @@ cv::Mat render_report(const detect::Detection& det, const ReportLayout& L) {
     image.copyTo(canvas(rect(panel.map)));
     cv::rectangle(canvas, rect(panel.map), kNoSurfaceBorder, 1);
   }
-  for (const DefectMark& m : L.marks) draw_ring(canvas, {m.cx, m.cy}, m.radius);
-  for (const DefectMark& m : L.marks) draw_number(canvas, m.label);
+  for (const DefectMark& m : L.marks) draw_ring(canvas, {m.cx, m.cy}, m.radius, m.echo);
+  for (const DefectMark& m : L.marks) draw_number(canvas, m.label, m.echo);
   // Scale bar: black and white halves, ticks at its ends.
   cv::rectangle(canvas, rect(L.scale_bar), kBlack, cv::FILLED);
   cv::rectangle(canvas, {L.scale_bar.x + L.scale_bar.w / 2 + 1, L.scale_bar.y + 1},

@@ -5,6 +5,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 namespace dentmark::report {
 
@@ -88,6 +89,65 @@ double scale_bar_length(double px_per_mm, double max_px) {
   return best;
 }
 
+// Defect k's mark on panel p: a ring of its diameter (at least 7 px) and its number
+// beside, on the first side that stays inside the panel clear of the numbers `taken`.
+// An echo (a chart that does not own the defect) only where that chart has surface
+// within 5 mm of the defect's centre; nullopt elsewhere.
+std::optional<DefectMark> place_mark(const detect::Detection& det, std::size_t k,
+                                     const std::vector<PanelMap>& maps, const ReportLayout& L, std::size_t p,
+                                     bool echo, std::vector<Box>& taken) {
+  const auto& d = det.defects[k].defect;
+  const PanelLayout& panel = L.panels[p];
+  const auto& map = maps[p].map;
+  const Eigen::Vector3d q = map.to_map(d.position);
+  if (echo) {
+    const long px = map.pixel_of(q.x(), q.y());
+    if (px < 0 || !std::isfinite(maps[p].deviation[static_cast<std::size_t>(px)]) ||
+        map.w.size() != map.size() || !(std::abs(map.w[static_cast<std::size_t>(px)] - q.z()) < 0.005))
+      return std::nullopt;
+  }
+  DefectMark m;
+  m.defect = k;
+  m.panel = p;
+  m.echo = echo;
+  m.cx = std::clamp(panel.map.x + static_cast<int>(std::lround((q.x() - map.u0) / map.pixel * panel.scale)),
+                    panel.map.x, panel.map.right() - 1);
+  m.cy = std::clamp(panel.map.y + static_cast<int>(std::lround((q.y() - map.v0) / map.pixel * panel.scale)),
+                    panel.map.y, panel.map.bottom() - 1);
+  m.radius = std::max(7, static_cast<int>(std::lround(0.5 * d.diameter / map.pixel * panel.scale)) + 3);
+  // Never past the canvas: a ring at the edge of a map stays within the margin.
+  m.radius = std::min({m.radius, m.cx - 2, m.cy - 2, L.width - 3 - m.cx, L.height - 3 - m.cy});
+  TextItem label = text_at(std::to_string(d.id), 0, 0, kMedium, 1);
+  label.box.w += 8, label.box.h += 4;  // padding of its box
+  const int w = label.box.w, h = label.box.h, off = static_cast<int>(std::lround(m.radius * 0.71)) + 2;
+  const std::vector<std::pair<int, int>> tries{{m.cx + off, m.cy - off - h},
+                                               {m.cx - off - w, m.cy - off - h},
+                                               {m.cx + off, m.cy + off},
+                                               {m.cx - off - w, m.cy + off},
+                                               {m.cx + m.radius + 3, m.cy - h / 2},
+                                               {m.cx - m.radius - 3 - w, m.cy - h / 2}};
+  Box chosen{-1, -1, w, h};
+  for (const bool avoid : {true, false}) {
+    for (const auto& [tx, ty] : tries) {
+      const Box b{tx, ty, w, h};
+      if (!b.inside(panel.map)) continue;
+      if (avoid && std::any_of(taken.begin(), taken.end(), [&](const Box& o) { return o.overlaps(b); }))
+        continue;
+      chosen = b;
+      break;
+    }
+    if (chosen.x >= 0) break;
+  }
+  if (chosen.x < 0)  // a panel smaller than the label: kept on the canvas
+    chosen = {std::clamp(tries[0].first, 0, L.width - w), std::clamp(tries[0].second, 0, L.height - h), w, h};
+  // The text sits 4 px in from its box's left edge and 2 px down (write_report_png).
+  label.baseline = chosen.y + 2 + label.baseline;
+  label.box = chosen;
+  taken.push_back(chosen);
+  m.label = std::move(label);
+  return m;
+}
+
 }  // namespace
 
 std::vector<PanelMap> panel_maps(const detect::Detection& det) {
@@ -146,7 +206,9 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
   const int left_bottom = std::max(L.scale_bar.bottom(), L.scale_bar_text.box.bottom());
 
   // Side column: colour bar, legend, table.
-  const int sx = kMargin + std::max(maps_w, L.scale_bar_text.box.right() - kMargin) + 2 * kMargin;
+  int left_right = std::max(kMargin + maps_w, L.scale_bar_text.box.right());
+  for (const auto& panel : L.panels) left_right = std::max(left_right, panel.title_text.box.right());
+  const int sx = left_right + 2 * kMargin;
   L.colour_title = text_at("deviation from the reference surface", sx, top, kMedium);
   L.colour_bar = {sx, L.colour_title.box.bottom() + 12, 24, 200};
   for (int t = 2; t >= -2; --t) {
@@ -168,6 +230,8 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     L.legend.push_back(std::move(e));
   };
   legend(LegendEntry::Symbol::kDefectRing, "defect: ring of its diameter, number as in the table");
+  if (maps.size() > 1)
+    legend(LegendEntry::Symbol::kDefectEcho, "the same defect seen on another chart (grey)");
   legend(LegendEntry::Symbol::kFeatureOutline, "design feature (line, handle, edge): its outline");
   legend(LegendEntry::Symbol::kNoSurface, "no surface measured");
   sy += kMargin / 2;
@@ -216,56 +280,16 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
   L.width = right + kMargin;
   L.height = std::max(left_bottom, sy) + kMargin;
 
-  // Defect marks: a ring of the defect's diameter (at least 7 px) and its number beside,
-  // on the first free side that stays inside its panel.
+  // Defect marks: on the chart that owns each defect, and on any other chart that shows
+  // the same surface there (charts overlap), an echo.
   const std::vector<std::size_t> where = defect_panels(det);
   std::vector<Box> taken;
-  for (std::size_t k = 0; k < det.defects.size(); ++k) {
-    const auto& d = det.defects[k].defect;
-    const PanelLayout& panel = L.panels[where[k]];
-    const auto& map = maps[where[k]].map;
-    const Eigen::Vector3d q = map.to_map(d.position);
-    DefectMark m;
-    m.defect = k;
-    m.panel = where[k];
-    m.cx = std::clamp(panel.map.x + static_cast<int>(std::lround((q.x() - map.u0) / map.pixel * panel.scale)),
-                      panel.map.x, panel.map.right() - 1);
-    m.cy = std::clamp(panel.map.y + static_cast<int>(std::lround((q.y() - map.v0) / map.pixel * panel.scale)),
-                      panel.map.y, panel.map.bottom() - 1);
-    m.radius = std::max(7, static_cast<int>(std::lround(0.5 * d.diameter / map.pixel * panel.scale)) + 3);
-    // Never past the canvas: a ring at the edge of a map stays within the margin.
-    m.radius = std::min({m.radius, m.cx - 2, m.cy - 2, L.width - 3 - m.cx, L.height - 3 - m.cy});
-    TextItem label = text_at(std::to_string(d.id), 0, 0, kMedium, 1);
-    label.box.w += 8, label.box.h += 4;  // padding of its box
-    const int w = label.box.w, h = label.box.h, off = static_cast<int>(std::lround(m.radius * 0.71)) + 2;
-    const std::vector<std::pair<int, int>> tries{{m.cx + off, m.cy - off - h},
-                                                 {m.cx - off - w, m.cy - off - h},
-                                                 {m.cx + off, m.cy + off},
-                                                 {m.cx - off - w, m.cy + off},
-                                                 {m.cx + m.radius + 3, m.cy - h / 2},
-                                                 {m.cx - m.radius - 3 - w, m.cy - h / 2}};
-    Box chosen{-1, -1, w, h};
-    for (const bool avoid : {true, false}) {
-      for (const auto& [tx, ty] : tries) {
-        const Box b{tx, ty, w, h};
-        if (!b.inside(panel.map)) continue;
-        if (avoid && std::any_of(taken.begin(), taken.end(), [&](const Box& o) { return o.overlaps(b); }))
-          continue;
-        chosen = b;
-        break;
-      }
-      if (chosen.x >= 0) break;
-    }
-    if (chosen.x < 0)  // a panel smaller than the label: kept on the canvas
-      chosen = {std::clamp(tries[0].first, 0, L.width - w), std::clamp(tries[0].second, 0, L.height - h), w,
-                h};
-    // The text sits 4 px in from its box's left edge and 2 px down (write_report_png).
-    label.baseline = chosen.y + 2 + label.baseline;
-    label.box = chosen;
-    taken.push_back(chosen);
-    m.label = std::move(label);
-    L.marks.push_back(std::move(m));
-  }
+  for (std::size_t k = 0; k < det.defects.size(); ++k)
+    if (auto m = place_mark(det, k, maps, L, where[k], false, taken)) L.marks.push_back(std::move(*m));
+  for (std::size_t p = 0; p < maps.size() && maps.size() > 1; ++p)
+    for (std::size_t k = 0; k < det.defects.size(); ++k)
+      if (p != where[k])
+        if (auto m = place_mark(det, k, maps, L, p, true, taken)) L.marks.push_back(std::move(*m));
   return L;
 }
 

@@ -91,6 +91,7 @@ TEST(Report, EverythingIsInsideTheImageAndTheTableHasARowPerDefect) {
   ASSERT_EQ(L.marks.size(), det.defects.size());
   for (std::size_t k = 0; k < L.marks.size(); ++k) {
     const DefectMark& m = L.marks[k];
+    EXPECT_FALSE(m.echo);
     EXPECT_TRUE(inside({m.cx - m.radius, m.cy - m.radius, 2 * m.radius + 1, 2 * m.radius + 1}, L)) << k;
     EXPECT_TRUE(m.label.box.inside(L.panels[m.panel].map)) << k;
     EXPECT_EQ(m.label.text, std::to_string(det.defects[k].defect.id));
@@ -117,7 +118,7 @@ TEST(Report, EverythingIsInsideTheImageAndTheTableHasARowPerDefect) {
        {L.scale_bar, L.scale_bar_text.box, L.colour_bar, L.colour_title.box, L.table_title.box, p.map})
     EXPECT_TRUE(inside(b, L));
   for (const auto& t : L.colour_ticks) EXPECT_TRUE(inside(t.box, L)) << t.text;
-  ASSERT_EQ(L.legend.size(), 3u);
+  ASSERT_EQ(L.legend.size(), 3u);  // one chart: no echoes to explain
   for (const auto& e : L.legend) EXPECT_TRUE(inside(e.swatch, L) && inside(e.text.box, L)) << e.text.text;
   // The side column does not cover the map.
   EXPECT_GE(L.colour_bar.x, p.map.right());

@@ -50,13 +50,17 @@ struct PanelLayout {
 struct DefectMark {
   std::size_t defect = 0;  // index into Detection::defects
   std::size_t panel = 0;   // the panel it is drawn on
-  int cx = 0, cy = 0;      // ring centre, canvas pixels
-  int radius = 0;          // ring radius: the measured diameter's half, at least a few pixels
-  TextItem label;          // its number, in a box beside the ring, inside the panel
+  // Drawn on a chart that shows the defect's surface but does not own it (charts
+  // overlap): a thin grey ring and number, so that the blob there is not taken for a
+  // defect missed.
+  bool echo = false;
+  int cx = 0, cy = 0;  // ring centre, canvas pixels
+  int radius = 0;      // ring radius: the measured diameter's half, at least a few pixels
+  TextItem label;      // its number, in a box beside the ring, inside the panel
 };
 
 struct LegendEntry {
-  enum class Symbol { kDefectRing, kFeatureOutline, kNoSurface } symbol;
+  enum class Symbol { kDefectRing, kDefectEcho, kFeatureOutline, kNoSurface } symbol;
   Box swatch;
   TextItem text;
 };
@@ -65,8 +69,8 @@ struct ReportLayout {
   int width = 0, height = 0;
   std::vector<TextItem> title;  // file and date; counts, spacing, noise
   std::vector<PanelLayout> panels;
-  std::vector<DefectMark> marks;
-  Box scale_bar;  // a bar `scale_bar_mm` long at the first panel's scale
+  std::vector<DefectMark> marks;  // each defect's on its own chart, in order; then echoes
+  Box scale_bar;                  // a bar `scale_bar_mm` long at the first panel's scale
   double scale_bar_mm = 0.0;
   TextItem scale_bar_text;
   Box colour_bar;      // the deviation colour scale, +range at the top
