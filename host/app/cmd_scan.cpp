@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <memory>
 #include <optional>
 
@@ -40,6 +41,16 @@ double scan_file_time(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return 0.0;
   return static_cast<double>(st.st_mtim.tv_sec) + 1e-9 * static_cast<double>(st.st_mtim.tv_nsec);
+}
+
+// A time (s since the epoch) as the report prints it: "2026-12-06 02:30 UTC".
+std::string utc_minutes(double t) {
+  const auto secs = static_cast<std::time_t>(t);
+  std::tm tm{};
+  if (::gmtime_r(&secs, &tm) == nullptr) return "";
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", &tm);
+  return text;
 }
 
 struct EvalArgs {
@@ -140,7 +151,9 @@ int run_detect(const DetectArgs& a) {
       j["timing"]["write"] = 0.0;
       report::write_text_file(a.json, j.dump(2) + "\n");
     }
-    if (!a.report.empty()) report::write_report_png(a.report, det);
+    if (!a.report.empty())
+      report::write_report_png(a.report, det,
+                               {a.scan, utc_minutes(a.scan_time.value_or(scan_file_time(a.scan)))});
     if (!a.ply.empty()) report::write_marked_ply(a.ply, mesh, det);
   } catch (const std::exception& e) {
     log::error(e.what());
@@ -242,7 +255,7 @@ int run_synth(SynthArgs a) {
 
 void register_scan(CLI::App& app, CLI::App& synth) {
   auto d = std::make_shared<DetectArgs>();
-  CLI::App* det = app.add_subcommand("detect", "Find dents and bumps on a scan (PLY, OBJ, STL, XYZ)");
+  CLI::App* det = app.add_subcommand("detect", "Find dents and bumps on a scan (PLY, OBJ, STL, XYZ, PCD)");
   det->add_option("scan", d->scan, "Scan file")->required();
   det->add_option("--units", d->units,
                   "Units of the scan file; auto: metres unless the scan is over 20 units across or "
@@ -252,7 +265,10 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   det->add_option("--config", d->config, "YAML detection settings");
   det->add_option("--out", d->out, "Defect list, binary protocol file (.dml)")->required();
   det->add_option("--json", d->json, "Defect list as JSON (dentmark.defects/1)");
-  det->add_option("--report", d->report, "PNG: deviation map with the defects ringed");
+  det->add_option(
+      "--report", d->report,
+      "PNG report: deviation map with scale bar, defects numbered, design feature outlines, legend, "
+      "defect table, title line");
   det->add_option("--ply", d->ply, "PLY: the mesh with defect triangles coloured");
   det->add_option("--panel", d->panel, "Panel model the edge box tracks this panel by (its taught template)");
   det->add_option("--job", d->job, "Job id of the defect list (default: the scan time in ms)");

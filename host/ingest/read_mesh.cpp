@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 
 #include "dentmark/host/ingest/cloud_mesher.h"
 #include "mapped_file.h"
@@ -18,6 +19,7 @@ Format format_from_path(const std::string& path) {
   if (ext == "ply") return Format::kPly;
   if (ext == "obj") return Format::kObj;
   if (ext == "stl") return Format::kStl;
+  if (ext == "pcd") return Format::kPcd;
   if (ext == "xyz" || ext == "txt" || ext == "pts" || ext == "asc" || ext == "csv") return Format::kXyz;
   return Format::kAuto;
 }
@@ -29,17 +31,33 @@ void check_scale(const std::string& path, const ReadOptions& options) {
     throw IngestError(path + ": scale to metres must be positive");
 }
 
-Format resolve_format(const std::string& path, std::string_view bytes, const ReadOptions& options) {
-  Format format = options.format == Format::kAuto ? format_from_path(path) : options.format;
-  if (format == Format::kAuto) {
-    if (bytes.substr(0, 3) == "ply")
-      format = Format::kPly;
-    else if (bytes.substr(0, 5) == "solid" || bytes.size() >= 84)
-      format = Format::kStl;
-    else
-      throw IngestError(path + ": byte 0: unknown file format (use .ply, .obj, .stl or .xyz)");
+// What the bytes say, for a file whose name does not: PLY and PCD by their first line,
+// ASCII STL by 'solid', binary STL by a facet count that gives exactly the file's size.
+Format format_from_content(std::string_view bytes) {
+  if (bytes.starts_with("ply")) return Format::kPly;
+  if (bytes.starts_with("# .PCD") || bytes.starts_with("VERSION") || bytes.starts_with("FIELDS"))
+    return Format::kPcd;
+  std::string_view text = bytes.substr(bytes.starts_with("\xEF\xBB\xBF") ? 3 : 0);
+  while (!text.empty() && std::isspace(static_cast<unsigned char>(text.front()))) text.remove_prefix(1);
+  if (text.size() >= 5) {
+    std::string head(text.substr(0, 5));
+    std::transform(head.begin(), head.end(), head.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (head == "solid") return Format::kStl;
   }
+  if (bytes.size() >= 84) {
+    std::uint32_t facets = 0;
+    std::memcpy(&facets, bytes.data() + 80, 4);
+    if (84 + 50ull * facets == bytes.size()) return Format::kStl;
+  }
+  return Format::kAuto;
+}
+
+Format resolve_format(const std::string& path, std::string_view bytes, const ReadOptions& options) {
   if (bytes.empty()) throw IngestError(path + ": byte 0: file is empty");
+  Format format = options.format == Format::kAuto ? format_from_path(path) : options.format;
+  if (format == Format::kAuto) format = format_from_content(bytes);
+  if (format == Format::kAuto)
+    throw IngestError(path + ": unknown scan format (expected PLY, OBJ, STL, XYZ or PCD)");
   return format;
 }
 
@@ -61,6 +79,9 @@ Mesh read_mapped(const std::string& path, std::string_view bytes, Format format,
       break;
     case Format::kStl:
       mesh = detail::read_stl(path, bytes);
+      break;
+    case Format::kPcd:
+      mesh = detail::read_pcd(path, bytes);
       break;
     case Format::kXyz:
     case Format::kAuto:

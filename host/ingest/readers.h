@@ -15,6 +15,7 @@ Mesh read_ply(const std::string& path, std::string_view bytes);
 Mesh read_obj(const std::string& path, std::string_view bytes);
 Mesh read_stl(const std::string& path, std::string_view bytes);
 Mesh read_xyz(const std::string& path, std::string_view bytes);
+Mesh read_pcd(const std::string& path, std::string_view bytes);
 
 // Vertices at exactly the same position made one (the first of them, in file order), and
 // the triangles renumbered: STL's facets each keep their own three corners, so without

@@ -15,28 +15,56 @@ namespace dentmark::report {
 
 namespace {
 
-// One height map with its deviation and labels: the scan's, or one of its charts'.
-struct Panel {
-  const detect::HeightMap& map;
-  const std::vector<float>& deviation;
-  const std::vector<std::int32_t>& labels;
-};
+const cv::Scalar kBlack(0, 0, 0), kWhite(255, 255, 255), kNoSurfaceBorder(170, 170, 170);
+// Design features' outlines: a thin dark line, half transparent, so that it stays in the
+// background of the map and is seen on every colour and on no-surface white.
+const cv::Scalar kOutline(0, 0, 0);
+constexpr double kOutlineOpacity = 0.5;
 
-std::vector<Panel> panels_of(const detect::Detection& det) {
-  std::vector<Panel> panels{{det.map, det.deviation, det.labels}};
-  for (const auto& c : det.more_charts) panels.push_back({c.map, c.deviation, c.labels});
-  return panels;
+cv::Rect rect(const Box& b) {
+  return {b.x, b.y, b.w, b.h};
 }
 
-// The deviation as colours (JET over +-range), about 1600 px wide, with the findings
-// defect_here and feature_here mark as the panel's ringed.
-cv::Mat render_panel(const Panel& panel, double range, const detect::Detection& det,
-                     const std::vector<bool>& defect_here, const std::vector<bool>& feature_here) {
+void draw_text(cv::Mat& canvas, const TextItem& t, int x_pad = 0, const cv::Scalar& colour = kBlack) {
+  if (t.text.empty()) return;
+  cv::putText(canvas, t.text, {t.box.x + x_pad, t.baseline}, cv::FONT_HERSHEY_SIMPLEX, t.scale, colour,
+              t.thickness, cv::LINE_AA);
+}
+
+// The JET colour of a deviation `d` on the colour map spanning -range .. +range.
+cv::Vec3b jet(double d, double range) {
+  cv::Mat px(1, 1, CV_8U, cv::Scalar(std::clamp(128.0 + 127.0 * d / range, 0.0, 255.0))), c;
+  cv::applyColorMap(px, c, cv::COLORMAP_JET);
+  return c.at<cv::Vec3b>(0, 0);
+}
+
+// A pixel without surface amid surface (5 or more of its 8 neighbours have some: a
+// sample that fell between pixels) shown as their mean; a real gap stays empty.
+float shown_deviation(const PanelMap& panel, int r, int c) {
+  const auto& map = panel.map;
+  const auto at = [&](int rr, int cc) {
+    return panel.deviation[static_cast<std::size_t>(rr) * map.cols + cc];
+  };
+  const float d = at(r, c);
+  if (std::isfinite(d)) return d;
+  float sum = 0.0f;
+  int n = 0;
+  for (int dr = -1; dr <= 1; ++dr)
+    for (int dc = -1; dc <= 1; ++dc) {
+      const int rr = r + dr, cc = c + dc;
+      if ((dr == 0 && dc == 0) || rr < 0 || cc < 0 || rr >= map.rows || cc >= map.cols) continue;
+      if (const float v = at(rr, cc); std::isfinite(v)) sum += v, ++n;
+    }
+  return n >= 5 ? sum / static_cast<float>(n) : d;
+}
+
+// The panel's deviation as colours at the layout's size; white where no surface is.
+cv::Mat deviation_image(const PanelMap& panel, double range, const Box& size) {
   const auto& map = panel.map;
   cv::Mat grey(map.rows, map.cols, CV_8U), empty(map.rows, map.cols, CV_8U, cv::Scalar(0));
   for (int r = 0; r < map.rows; ++r)
     for (int c = 0; c < map.cols; ++c) {
-      const float d = panel.deviation[static_cast<std::size_t>(r) * map.cols + c];
+      const float d = shown_deviation(panel, r, c);
       if (!std::isfinite(d)) {
         empty.at<std::uint8_t>(r, c) = 255;
         grey.at<std::uint8_t>(r, c) = 128;
@@ -47,96 +75,132 @@ cv::Mat render_panel(const Panel& panel, double range, const detect::Detection& 
     }
   cv::Mat colour;
   cv::applyColorMap(grey, colour, cv::COLORMAP_JET);
-  colour.setTo(cv::Scalar(255, 255, 255), empty);
-  // Scale so that the picture is about 1600 px wide.
-  const double scale = std::clamp(1600.0 / map.cols, 0.25, 8.0);
+  colour.setTo(kWhite, empty);
   cv::Mat big;
-  cv::resize(colour, big, {}, scale, scale, scale >= 1 ? cv::INTER_NEAREST : cv::INTER_AREA);
-  auto draw = [&](const detect::Finding& f, const cv::Scalar& col, bool label) {
-    const Eigen::Vector3d q = map.to_map(f.defect.position);
-    const cv::Point p(static_cast<int>((q.x() - map.u0) / map.pixel * scale),
-                      static_cast<int>((q.y() - map.v0) / map.pixel * scale));
-    const int rad = std::max(10, static_cast<int>(0.75 * f.defect.diameter / map.pixel * scale));
-    cv::circle(big, p, rad, col, 2, cv::LINE_AA);
-    if (label) {
-      char text[64];
-      std::snprintf(text, sizeof text, "#%u %s %+.3f mm", f.defect.id,
-                    f.defect.defect_class == protocol::DefectClass::kDent ? "dent" : "bump",
-                    1e3 * f.defect.height);
-      cv::putText(big, text, p + cv::Point(rad + 4, 5), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 3,
-                  cv::LINE_AA);
-      cv::putText(big, text, p + cv::Point(rad + 4, 5), cv::FONT_HERSHEY_SIMPLEX, 0.5, col, 1, cv::LINE_AA);
-    }
-  };
-  for (std::size_t k = 0; k < det.features.size(); ++k)
-    if (feature_here[k] && det.features[k].defect.defect_class == protocol::DefectClass::kDesignFeature)
-      draw(det.features[k], cv::Scalar(128, 128, 128), false);
-  for (std::size_t k = 0; k < det.defects.size(); ++k)
-    if (defect_here[k]) draw(det.defects[k], cv::Scalar(255, 0, 255), true);
+  const bool up = size.w >= map.cols;
+  cv::resize(colour, big, {size.w, size.h}, 0, 0, up ? cv::INTER_NEAREST : cv::INTER_AREA);
   return big;
+}
+
+// The outline of every design feature's pixels on the panel, drawn lightly over `image`.
+void draw_feature_outlines(cv::Mat& image, const PanelMap& panel, const detect::Detection& det,
+                           double scale) {
+  const auto& map = panel.map;
+  cv::Mat mask(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c) {
+      const std::int32_t l = panel.labels[static_cast<std::size_t>(r) * map.cols + c];
+      if (l <= -2 && det.features[static_cast<std::size_t>(-2 - l)].defect.defect_class ==
+                         protocol::DefectClass::kDesignFeature)
+        mask.at<std::uint8_t>(r, c) = 255;
+    }
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_SIMPLE);
+  for (auto& contour : contours)
+    for (auto& p : contour)  // pixel centres at the image's scale
+      p = {static_cast<int>(std::lround((p.x + 0.5) * scale)),
+           static_cast<int>(std::lround((p.y + 0.5) * scale))};
+  cv::Mat overlay = image.clone();
+  cv::polylines(overlay, contours, true, kOutline, 1, cv::LINE_AA);
+  cv::addWeighted(overlay, kOutlineOpacity, image, 1.0 - kOutlineOpacity, 0.0, image);
+}
+
+// A defect's own ring is black on a white halo; an echo's thin grey.
+const cv::Scalar kEcho(110, 110, 110);
+
+void draw_ring(cv::Mat& canvas, cv::Point c, int radius, bool echo) {
+  if (echo) {
+    cv::circle(canvas, c, radius, kEcho, 1, cv::LINE_AA);
+    return;
+  }
+  cv::circle(canvas, c, radius, kWhite, 4, cv::LINE_AA);  // a halo: visible on every colour
+  cv::circle(canvas, c, radius, kBlack, 2, cv::LINE_AA);
+}
+
+void draw_number(cv::Mat& canvas, const TextItem& label, bool echo) {
+  cv::rectangle(canvas, rect(label.box), kWhite, cv::FILLED);
+  cv::rectangle(canvas, rect(label.box), echo ? kEcho : kBlack, 1);
+  draw_text(canvas, label, 4, echo ? kEcho : kBlack);
+}
+
+void draw_legend(cv::Mat& canvas, const LegendEntry& e) {
+  const cv::Point mid(e.swatch.x + e.swatch.w / 2, e.swatch.y + e.swatch.h / 2);
+  cv::Mat swatch = canvas(rect(e.swatch));
+  switch (e.symbol) {
+    case LegendEntry::Symbol::kDefectRing:
+      swatch.setTo(cv::Scalar(jet(-0.6, 1.0)));
+      draw_ring(canvas, mid, e.swatch.h / 2 - 3, false);
+      break;
+    case LegendEntry::Symbol::kDefectEcho:
+      swatch.setTo(cv::Scalar(jet(0.0, 1.0)));
+      draw_ring(canvas, mid, e.swatch.h / 2 - 3, true);
+      break;
+    case LegendEntry::Symbol::kFeatureOutline: {
+      swatch.setTo(cv::Scalar(jet(0.0, 1.0)));
+      cv::Mat overlay = swatch.clone();
+      cv::rectangle(overlay, {6, 6}, {e.swatch.w - 7, e.swatch.h - 7}, kOutline, 1, cv::LINE_AA);
+      cv::addWeighted(overlay, kOutlineOpacity, swatch, 1.0 - kOutlineOpacity, 0.0, swatch);
+      break;
+    }
+    case LegendEntry::Symbol::kNoSurface:
+      swatch.setTo(kWhite);
+      cv::rectangle(canvas, rect(e.swatch), kNoSurfaceBorder, 1);
+      break;
+  }
+  draw_text(canvas, e.text);
 }
 
 }  // namespace
 
-void write_report_png(const std::string& path, const detect::Detection& det) {
-  if (det.map.size() == 0) throw ReportError(path + ": nothing to draw");
-  const std::vector<Panel> panels = panels_of(det);
-  // Each finding on the panel (chart) whose labels hold it; one on none (or a scan seen
-  // in one map) on the first.
-  std::vector<std::vector<bool>> defect_here(panels.size(), std::vector<bool>(det.defects.size(), false));
-  std::vector<std::vector<bool>> feature_here(panels.size(), std::vector<bool>(det.features.size(), false));
-  if (panels.size() > 1)
-    for (std::size_t p = 0; p < panels.size(); ++p)
-      for (const std::int32_t l : panels[p].labels) {
-        if (l >= 0) defect_here[p][static_cast<std::size_t>(l)] = true;
-        if (l <= -2) feature_here[p][static_cast<std::size_t>(-2 - l)] = true;
-      }
-  for (auto* here : {&defect_here, &feature_here})
-    for (std::size_t k = 0; k < (*here)[0].size(); ++k)
-      if (std::none_of(here->begin(), here->end(), [&](const std::vector<bool>& panel) { return panel[k]; }))
-        (*here)[0][k] = true;
-  // Colour range: the larger of 0.1 mm and 8x the measured deviation noise.
-  const double range = std::max(1e-4, 8.0 * det.stats.deviation_noise);
-  std::vector<cv::Mat> pictures;
-  int width = 0, height = 0;
-  const int title_h = panels.size() > 1 ? 30 : 0;
-  for (std::size_t p = 0; p < panels.size(); ++p) {
-    pictures.push_back(render_panel(panels[p], range, det, defect_here[p], feature_here[p]));
-    width = std::max(width, pictures.back().cols);
-    height += pictures.back().rows + title_h;
+cv::Mat render_report(const detect::Detection& det, const ReportLayout& L) {
+  cv::Mat canvas(L.height, L.width, CV_8UC3, kWhite);
+  for (const auto& t : L.title) draw_text(canvas, t);
+  const std::vector<PanelMap> maps = panel_maps(det);
+  for (std::size_t p = 0; p < maps.size(); ++p) {
+    const PanelLayout& panel = L.panels[p];
+    draw_text(canvas, panel.title_text);
+    cv::Mat image = deviation_image(maps[p], L.range, panel.map);
+    draw_feature_outlines(image, maps[p], det, panel.scale);
+    image.copyTo(canvas(rect(panel.map)));
+    cv::rectangle(canvas, rect(panel.map), kNoSurfaceBorder, 1);
   }
-  const int legend_w = 160;
-  cv::Mat canvas(std::max(height, 420), width + legend_w, CV_8UC3, cv::Scalar(255, 255, 255));
-  int y = 0;
-  for (std::size_t p = 0; p < pictures.size(); ++p) {
-    if (title_h > 0) {
-      const std::string title = "chart " + std::to_string(p + 1) + " of " + std::to_string(pictures.size()) +
-                                " (the surface wraps round: each chart seen face-on)";
-      cv::putText(canvas, title, {10, y + 21}, cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 0, 0), 1,
-                  cv::LINE_AA);
-      y += title_h;
+  for (const DefectMark& m : L.marks) draw_ring(canvas, {m.cx, m.cy}, m.radius, m.echo);
+  for (const DefectMark& m : L.marks) draw_number(canvas, m.label, m.echo);
+  // Scale bar: black and white halves, ticks at its ends.
+  cv::rectangle(canvas, rect(L.scale_bar), kBlack, cv::FILLED);
+  cv::rectangle(canvas, {L.scale_bar.x + L.scale_bar.w / 2 + 1, L.scale_bar.y + 1},
+                {L.scale_bar.right() - 2, L.scale_bar.bottom() - 2}, kWhite, cv::FILLED);
+  draw_text(canvas, L.scale_bar_text);
+  // Colour bar, +range at the top.
+  draw_text(canvas, L.colour_title);
+  for (int i = 0; i < L.colour_bar.h; ++i) {
+    const double d = L.range * (1.0 - 2.0 * i / (L.colour_bar.h - 1));
+    const cv::Vec3b v = jet(d, L.range);
+    cv::line(canvas, {L.colour_bar.x, L.colour_bar.y + i}, {L.colour_bar.right() - 1, L.colour_bar.y + i},
+             cv::Scalar(v[0], v[1], v[2]));
+  }
+  for (int t = 0; t < 5; ++t) {
+    const int yt = L.colour_bar.y + (L.colour_bar.h - 1) * t / 4;
+    cv::line(canvas, {L.colour_bar.right(), yt}, {L.colour_bar.right() + 6, yt}, kBlack);
+  }
+  for (const auto& t : L.colour_ticks) draw_text(canvas, t);
+  for (const auto& e : L.legend) draw_legend(canvas, e);
+  draw_text(canvas, L.table_title);
+  for (std::size_t r = 0; r < L.table.size(); ++r) {
+    for (const auto& cell : L.table[r]) draw_text(canvas, cell);
+    if (r == 0) {  // a rule under the header
+      const Box& first = L.table[0].front().box;
+      cv::line(canvas, {first.x, first.bottom() + 3}, {L.table[0].back().box.right(), first.bottom() + 3},
+               kBlack);
     }
-    pictures[p].copyTo(canvas(cv::Rect(0, y, pictures[p].cols, pictures[p].rows)));
-    y += pictures[p].rows;
   }
-  // Legend: colour bar in mm.
-  const int x0 = width + 30, y0 = 40, bar_h = 320;
-  for (int i = 0; i < bar_h; ++i) {
-    cv::Mat px(1, 1, CV_8U, cv::Scalar(255 - 255 * i / (bar_h - 1))), c;
-    cv::applyColorMap(px, c, cv::COLORMAP_JET);
-    const cv::Vec3b v = c.at<cv::Vec3b>(0, 0);
-    cv::line(canvas, {x0, y0 + i}, {x0 + 24, y0 + i}, cv::Scalar(v[0], v[1], v[2]));
-  }
-  cv::putText(canvas, "deviation", {x0 - 10, y0 - 22}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1,
-              cv::LINE_AA);
-  for (int t = -2; t <= 2; ++t) {
-    const int yt = y0 + (bar_h - 1) * (2 - t) / 4;
-    char text[32];
-    std::snprintf(text, sizeof text, "%+.3f mm", 1e3 * range * t / 2.0);
-    cv::line(canvas, {x0 + 24, yt}, {x0 + 30, yt}, cv::Scalar(0, 0, 0));
-    cv::putText(canvas, text, {x0 + 34, yt + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1,
-                cv::LINE_AA);
-  }
+  draw_text(canvas, L.table_more);
+  return canvas;
+}
+
+void write_report_png(const std::string& path, const detect::Detection& det, const ReportInfo& info) {
+  if (det.map.size() == 0) throw ReportError(path + ": nothing to draw");
+  const cv::Mat canvas = render_report(det, layout_report(det, info));
   try {
     files::write_atomically_with(path,
                                  [&](const std::filesystem::path& tmp) { image::write_png(tmp, canvas); });
@@ -149,7 +213,7 @@ void write_report_png(const std::string& path, const detect::Detection& det) {
 
 std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::MeshView& mesh,
                                                                const detect::Detection& det) {
-  const std::vector<Panel> panels = panels_of(det);
+  const std::vector<PanelMap> panels = panel_maps(det);
   std::vector<std::array<std::uint8_t, 3>> colours(mesh.vertex_count(), {190, 190, 190});
   for (std::size_t i = 0; i < mesh.triangle_count(); ++i) {
     const auto t = mesh.triangle(i);
@@ -157,7 +221,7 @@ std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::Mes
         ((mesh.vertex(t[0]) + mesh.vertex(t[1]) + mesh.vertex(t[2])) / 3.0f).cast<double>();
     // The first map (chart) that labels the triangle's pixel: a chart labels only what it owns.
     int l = -1;
-    for (const Panel& panel : panels) {
+    for (const PanelMap& panel : panels) {
       const Eigen::Vector3d q = panel.map.to_map(c);
       const long k = panel.map.pixel_of(q.x(), q.y());
       if (k >= 0 && panel.labels[static_cast<std::size_t>(k)] != -1) {

@@ -1,8 +1,8 @@
-// libFuzzer target for the scan readers: PLY, its in-place scanner layout, OBJ, STL and
-// XYZ. None may crash, hang or read out of bounds (ASan/UBSan); every index a reader hands
-// on is in range; a file accepted in place must be read by the copying PLY reader into
-// the same mesh; and rewinding what was read (orient_triangles.h) keeps every triangle's
-// corners, at most reversed.
+// libFuzzer target for the scan readers: PLY, its in-place scanner layout, OBJ, STL,
+// XYZ and PCD (ascii, binary, binary_compressed with its LZF decoder). None may crash, hang or read out of
+// bounds (ASan/UBSan); every index a reader hands on is in range; a file accepted in place must be read by
+// the copying PLY reader into the same mesh; and rewinding what was read (orient_triangles.h) keeps every
+// triangle's corners, at most reversed.
 #include <array>
 #include <cstdint>
 #include <cstdlib>
@@ -61,7 +61,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const in::IngestError&) {
   }
   if (read) check_indices(mesh), check_rewinding(mesh);
-  for (auto reader : {in::detail::read_obj, in::detail::read_stl, in::detail::read_xyz}) {
+  for (auto reader :
+       {in::detail::read_obj, in::detail::read_stl, in::detail::read_xyz, in::detail::read_pcd}) {
     try {
       const in::Mesh m = reader("fuzz", bytes);
       check_indices(m);

@@ -241,6 +241,25 @@ TEST(Detect, ASideTurnedAwayFromTheSensorKeepsDentsAsDents) {
     count(det.labels);
     for (const auto& chart : det.more_charts) count(chart.labels);
     for (std::size_t k = 0; k < det.defects.size(); ++k) EXPECT_EQ(charts_labelling[k], 1) << "defect " << k;
+    // The report: a panel per chart, each defect ringed and numbered on its own chart.
+    const report::ReportLayout layout = report::layout_report(det, {"wrapped.ply", ""});
+    ASSERT_EQ(layout.panels.size(), det.stats.charts);
+    ASSERT_GE(layout.marks.size(), det.defects.size());
+    for (std::size_t i = 0; i < layout.marks.size(); ++i) {
+      const auto& m = layout.marks[i];
+      const report::Box& map = layout.panels[m.panel].map;
+      EXPECT_TRUE(m.label.box.inside(map)) << m.label.text;
+      EXPECT_TRUE(m.cx >= map.x && m.cx < map.right() && m.cy >= map.y && m.cy < map.bottom())
+          << m.label.text;
+      // First each defect on the chart that owns it, then echoes on the others.
+      EXPECT_EQ(m.echo, i >= det.defects.size());
+      EXPECT_EQ(m.panel == report::defect_panels(det)[m.defect], !m.echo) << m.label.text;
+    }
+    EXPECT_GE(layout.colour_bar.x,
+              layout.panels[0].title_text.box.right());  // titles clear of the side column
+    for (std::size_t p = 1; p < layout.panels.size(); ++p)
+      EXPECT_GE(layout.panels[p].map.y, layout.panels[p - 1].map.bottom());  // stacked, apart
+    EXPECT_LE(layout.panels.back().map.bottom(), layout.height);
     // The marked PLY: each planted defect's centre coloured as its class, wherever it lies.
     const auto colours = report::marked_vertex_colours(mesh, det);
     for (const Planted& d : planted) {

@@ -1102,5 +1102,53 @@ TEST(Ingest, ObjFaceWithFewerThanThreeCornersIsAnError) {
                                         "f 1 2 3 4\nf 2 5 3\nl 1 2\np 3\n")));
 }
 
+// The variants tools write: PLY faces named 'vertex_index' (older exporters), double
+// coordinates, normals and colours before and after x y z, 'comment' and 'obj_info',
+// either byte order; OBJ vertices with colours, 'v/vt/vn' corners, negative indices.
+TEST(Ingest, PlyAndObjVariantsAsToolsWriteThem) {
+  for (const bool big : {false, true})
+    for (const bool ascii : {false, true}) {
+      SCOPED_TRACE(std::to_string(big) + std::to_string(ascii));
+      std::string s =
+          std::string("ply\nformat ") +
+          (ascii ? "ascii"
+           : big ? "binary_big_endian"
+                 : "binary_little_endian") +
+          " 1.0\ncomment made by a tool\nobj_info num_cols 2\nelement vertex 5\n"
+          "property float nx\nproperty double x\nproperty double y\nproperty double z\n"
+          "property float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\n"
+          "property uchar blue\nelement face 2\nproperty list uchar int vertex_index\nend_header\n";
+      for (auto& v : kV) {
+        if (ascii) {
+          s += "0.5 " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) +
+               " 0.5 0.7 255 128 0\n";
+          continue;
+        }
+        put<float>(s, 0.5f, big);
+        for (int a = 0; a < 3; ++a) put<double>(s, v[a], big);
+        put<float>(s, 0.5f, big), put<float>(s, 0.7f, big);
+        s += "\xff\x80";
+        s += '\0';
+      }
+      if (ascii) {
+        s += "4 0 1 2 3\n3 1 4 2\n";
+      } else {
+        put<std::uint8_t>(s, 4);
+        for (int i : {0, 1, 2, 3}) put<std::int32_t>(s, i, big);
+        put<std::uint8_t>(s, 3);
+        for (int i : {1, 4, 2}) put<std::int32_t>(s, i, big);
+      }
+      expect_reference(read_mesh(write_file("variant.ply", s)));
+    }
+  std::string obj = "mtllib door.mtl\no door\n";
+  for (auto& v : kV)
+    obj += "v " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) +
+           " 0.6 0.6 0.65\n";
+  obj +=
+      "vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\nusemtl paint\ns 1\nf 1/1/1 2/2/1 3/3/1 -2/1/1\nf -4/1/1 -1/2/1 "
+      "-3/3/1\n";
+  expect_reference(read_mesh(write_file("variant.obj", obj)));
+}
+
 }  // namespace
 }  // namespace dentmark::ingest

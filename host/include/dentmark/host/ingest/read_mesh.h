@@ -1,6 +1,7 @@
 #pragma once
-// Reads a scan (PLY ascii/binary LE/BE, OBJ, STL ascii/binary, XYZ text) into a Mesh.
-// Point clouds (PLY without faces, XYZ) are meshed in the sensor's view (2.5D).
+// Reads a scan (PLY ascii/binary LE/BE, OBJ, STL ascii/binary, XYZ text, PCD ascii/binary/
+// binary_compressed) into a Mesh. Point clouds (PLY without faces, XYZ, PCD) are meshed in the sensor's view
+// (2.5D).
 
 #include <cstddef>
 #include <functional>
@@ -12,7 +13,7 @@
 
 namespace dentmark::ingest {
 
-enum class Format { kAuto, kPly, kObj, kStl, kXyz };
+enum class Format { kAuto, kPly, kObj, kStl, kXyz, kPcd };
 
 struct ReadOptions {
   double scale_to_m = 1.0;  // file units -> metres (mm files: 0.001)
@@ -41,7 +42,9 @@ struct Scan {
 // Throws IngestError naming the file and the line or byte offset.
 Scan open_scan(const std::string& path, const ReadOptions& options = {});
 
-// Format from the file name's extension (case-insensitive); kAuto if unknown.
+// Format from the file name's extension (case-insensitive); kAuto if unknown. A file with
+// no known extension is told by its content (PLY, PCD or STL); anything else is refused
+// as an unknown format.
 Format format_from_path(const std::string& path);
 
 }  // namespace dentmark::ingest

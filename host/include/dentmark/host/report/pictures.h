@@ -1,7 +1,9 @@
 #pragma once
-// Pictures for people: the deviation from the reference surface as a colour map with
-// each defect ringed and labelled and a legend in mm (PNG), and the mesh with defect
-// triangles coloured (PLY, for MeshLab or CloudCompare).
+// Pictures for people: the report PNG (the deviation from the reference surface as a
+// colour map with a scale bar, each defect ringed and numbered, design features by their
+// outline, a legend, a table of the defects and a title line; report_layout.h says where
+// each goes), and the mesh with defect triangles coloured (PLY, for MeshLab or
+// CloudCompare).
 
 #include <array>
 #include <cstdint>
@@ -10,11 +12,18 @@
 
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/ingest/mesh.h"
+#include "dentmark/host/report/report_layout.h"
+
+namespace cv {
+class Mat;
+}
 
 namespace dentmark::report {
 
 // Throws ReportError on failure; nothing is left half-written.
-void write_report_png(const std::string& path, const detect::Detection& detection);
+void write_report_png(const std::string& path, const detect::Detection& detection, const ReportInfo& info);
+// The report as an 8-bit BGR image, drawn as `layout` places it.
+cv::Mat render_report(const detect::Detection& detection, const ReportLayout& layout);
 void write_marked_ply(const std::string& path, const ingest::MeshView& mesh,
                       const detect::Detection& detection);
 // The marked PLY's colour per vertex: red on a dent's triangles, blue on a bump's, yellow
