@@ -137,6 +137,12 @@ std::vector<std::string> words(const std::string& text) {
   return out;
 }
 
+std::string joined(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : " ") + item;
+  return out;
+}
+
 // The box's RAUC pre-install handler (packaging/image/rauc-pre-install) accepts one
 // older bundle while this file exists, and removes it.
 constexpr const char* kAllowDowngradeFlag = "/run/dentmark/allow-downgrade";
@@ -212,7 +218,7 @@ UpdateResult update_box(const BoxAddress& address, const std::string& bundle, co
     result.verdict = judge(after, result.old_slot, result.new_slot, words(units.output));
     result.detail = "slot " +
                     (after.booted() ? after.booted()->name + " " + after.booted()->boot_status : "?") +
-                    ", units: " + units.output;
+                    ", units: " + joined(words(units.output));
     if (result.verdict == Verdict::kNewSlotBad && !reported_bad) {
       say(result.new_slot + " booted but its health check failed; waiting for the fallback to " +
           result.old_slot);
