@@ -7,19 +7,11 @@
 #include <memory>
 #include <string>
 
-#include "dentmark/host/ingest/mesh.h"
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh_view.h"
+#include "dentmark/common/ingest/read_scan_file.h"
 
 namespace dentmark::ingest {
-
-enum class Format { kAuto, kPly, kObj, kStl, kXyz };
-
-struct ReadOptions {
-  double scale_to_m = 1.0;  // file units -> metres (mm files: 0.001)
-  Format format = Format::kAuto;
-  // Called with the fraction done (0..1) while reading big files; may be empty.
-  std::function<void(double)> progress;
-};
 
 // Throws IngestError naming the file and the line or byte offset.
 Mesh read_mesh(const std::string& path, const ReadOptions& options = {});
@@ -40,8 +32,5 @@ struct Scan {
 
 // Throws IngestError naming the file and the line or byte offset.
 Scan open_scan(const std::string& path, const ReadOptions& options = {});
-
-// Format from the file name's extension (case-insensitive); kAuto if unknown.
-Format format_from_path(const std::string& path);
 
 }  // namespace dentmark::ingest
