@@ -16,7 +16,6 @@
 #include <string>
 #include <vector>
 
-#include "calibration_devices.h"
 #include "commands.h"
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/common/log.h"
@@ -30,6 +29,7 @@
 #include "dentmark/firmware/calibrate/stereo_calibration_file.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 #include "dentmark/firmware/hal/camera/camera.h"
+#include "dentmark/firmware/simulation/calibration_devices.h"
 #include "dentmark/firmware/station/calibration_marker.h"
 
 namespace dentmark::edge {
@@ -222,7 +222,7 @@ LiveRun run_live(const CalibrateRobotCliOptions& o) {
   LiveRun run;
   run.target = tool_target_of(o.target);
   clock::Clock& clock = clock::monotonic_clock();
-  const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+  const auto devices = simulation::open_calibration_devices(board, o.sim_scene, clock);
   calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, run.target);
   const auto start = std::chrono::steady_clock::now();
   calibrate::LiveCalibration live = calibrate::calibrate_robot_live(
@@ -349,7 +349,7 @@ int run_calibrate_verify(const CalibrateVerifyCliOptions& o) {
     clock::Clock& clock = clock::monotonic_clock();
     calibrate::LiveVerify v;
     try {
-      const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+      const auto devices = simulation::open_calibration_devices(board, o.sim_scene, clock);
       calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, *target);
       calibrate::PosePlanOptions plan = plan_of(board, o.poses);
       plan.halton_offset = 5000;  // other poses than the calibration's

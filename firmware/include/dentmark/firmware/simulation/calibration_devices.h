@@ -2,8 +2,10 @@
 // The devices `calibrate robot` (live) and `calibrate verify` drive: the board's robot
 // and camera pair (hal/board_hal.h). With a board whose cameras are simulated
 // (camera.backend: sim) the cameras render the twin's calibration scene
-// (sim/calibration, --sim-scene): the tool's target at the pose the robot reports,
-// through the scene's true camera rig and T_base_camL, which the calibration never sees.
+// (sim/calibration): the tool's target at the pose the robot reports, through the
+// scene's true camera rig and T_base_camL, which the calibration never sees. Used by the
+// calibrate commands (--sim-scene) and by the twin commissioning itself
+// (self_calibration.h).
 
 #include <memory>
 #include <optional>
@@ -15,7 +17,7 @@
 #include "dentmark/firmware/hal/robot/robot.h"
 #include "dentmark/sim/calibration/calibration_scene.h"
 
-namespace dentmark::edge {
+namespace dentmark::simulation {
 
 struct CalibrationDevices {
   std::unique_ptr<hal::Robot> robot;
@@ -24,10 +26,14 @@ struct CalibrationDevices {
   std::unique_ptr<sim::ChessboardRenderer> renderer;
 };
 
-// Throws std::runtime_error (hal errors, a sim board without --sim-scene, a scene whose
-// image size differs from the board's).
+// Throws std::runtime_error (hal errors, a sim board without a scene, a scene with a real
+// camera backend, a scene whose image size differs from the board's).
+std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
+                                                             std::optional<sim::CalibrationScene> scene,
+                                                             clock::Clock& clock);
+// The same with the scene read from a file (--sim-scene; empty: none).
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
                                                              const std::string& sim_scene,
                                                              clock::Clock& clock);
 
-}  // namespace dentmark::edge
+}  // namespace dentmark::simulation

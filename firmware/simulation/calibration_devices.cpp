@@ -1,24 +1,24 @@
-#include "calibration_devices.h"
+#include "dentmark/firmware/simulation/calibration_devices.h"
 
 #include <stdexcept>
 
 #include "dentmark/firmware/hal/board_hal.h"
 
-namespace dentmark::edge {
+namespace dentmark::simulation {
 
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
-                                                             const std::string& sim_scene,
+                                                             std::optional<sim::CalibrationScene> scene,
                                                              clock::Clock& clock) {
   auto d = std::make_unique<CalibrationDevices>();
   hal::HalChoice choice;
   d->robot = hal::make_robot(board, choice, clock);
   if (board.camera.backend == board::CameraBackend::kSim) {
-    if (sim_scene.empty())
+    if (!scene)
       throw std::runtime_error(board.source +
                                ": camera.backend is sim: give the twin's scene with --sim-scene FILE");
-    d->scene = sim::read_calibration_scene(sim_scene);
+    d->scene = std::move(scene);
     if (d->scene->rig.size != cv::Size(board.camera.width, board.camera.height))
-      throw std::runtime_error(sim_scene + ": image size differs from the board's camera.width/height");
+      throw std::runtime_error("the twin's scene: image size differs from the board's camera.width/height");
     d->renderer = std::make_unique<sim::ChessboardRenderer>(d->scene->rig, d->scene->target);
     // Where the target truly is: the robot's reported pose (the twin's robot is exact),
     // through the scene's mount and true T_base_camL.
@@ -29,7 +29,7 @@ std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardC
     };
     choice.render = [render](double) { return render(stereo::Eye::kLeft); };
     choice.render_right = [render](double) { return render(stereo::Eye::kRight); };
-  } else if (!sim_scene.empty()) {
+  } else if (scene) {
     throw std::runtime_error("--sim-scene: only for a board whose camera.backend is sim");
   }
   d->left = hal::make_camera(board, hal::StereoSide::kLeft, choice, clock);
@@ -37,4 +37,18 @@ std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardC
   return d;
 }
 
-}  // namespace dentmark::edge
+std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
+                                                             const std::string& sim_scene,
+                                                             clock::Clock& clock) {
+  std::optional<sim::CalibrationScene> scene;
+  if (!sim_scene.empty()) {
+    if (board.camera.backend != board::CameraBackend::kSim)
+      throw std::runtime_error("--sim-scene: only for a board whose camera.backend is sim");
+    scene = sim::read_calibration_scene(sim_scene);
+    if (scene->rig.size != cv::Size(board.camera.width, board.camera.height))
+      throw std::runtime_error(sim_scene + ": image size differs from the board's camera.width/height");
+  }
+  return open_calibration_devices(board, std::move(scene), clock);
+}
+
+}  // namespace dentmark::simulation
