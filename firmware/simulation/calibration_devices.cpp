@@ -8,7 +8,8 @@ namespace dentmark::simulation {
 
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
                                                              std::optional<sim::CalibrationScene> scene,
-                                                             clock::Clock& clock) {
+                                                             clock::Clock& clock,
+                                                             std::function<Transform()> true_tool_pose) {
   auto d = std::make_unique<CalibrationDevices>();
   hal::HalChoice choice;
   d->robot = hal::make_robot(board, choice, clock);
@@ -20,11 +21,12 @@ std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardC
     if (d->scene->rig.size != cv::Size(board.camera.width, board.camera.height))
       throw std::runtime_error("the twin's scene: image size differs from the board's camera.width/height");
     d->renderer = std::make_unique<sim::ChessboardRenderer>(d->scene->rig, d->scene->target);
-    // Where the target truly is: the robot's reported pose (the twin's robot is exact),
-    // through the scene's mount and true T_base_camL.
-    auto render = [dev = d.get(), rng = std::make_shared<cv::RNG>(7)](stereo::Eye eye) {
+    // Where the target truly is: the tool's true pose if known, else the robot's reported
+    // pose (an exact robot), through the scene's mount and true T_base_camL.
+    auto render = [dev = d.get(), rng = std::make_shared<cv::RNG>(7), true_tool_pose](stereo::Eye eye) {
+      const Transform T_base_tool = true_tool_pose ? true_tool_pose() : dev->robot->status().T_base_tool;
       const Transform T_camL_target =
-          dev->scene->T_base_camL.inverse() * dev->robot->status().T_base_tool * dev->scene->T_tool_target;
+          dev->scene->T_base_camL.inverse() * T_base_tool * dev->scene->T_tool_target;
       return dev->renderer->render(eye, T_camL_target, dev->scene->imaging, *rng);
     };
     choice.render = [render](double) { return render(stereo::Eye::kLeft); };

@@ -50,7 +50,7 @@ void put(std::ostringstream& o, const cv::Mat& m) {
 std::string station_text(const Workcell& cell, const sim::RobotSimConfig& robot) {
   std::ostringstream o;
   o.precision(12);
-  o << "v1 " << kVersion << ' ' << cell.rig.size.width << 'x' << cell.rig.size.height;
+  o << "v2 " << kVersion << ' ' << cell.rig.size.width << 'x' << cell.rig.size.height;
   put(o, cv::Mat(cell.rig.left.K));
   put(o, cell.rig.left.D);
   put(o, cv::Mat(cell.rig.right.K));
@@ -132,7 +132,8 @@ void calibrate_robot_step(const Workcell& cell, board::BoardConfig board,
       "chessboard:" + std::to_string(scene.target.cols) + "x" + std::to_string(scene.target.rows),
       scene.target.square, 0.0, "");
   target.T_tool_target = scene.T_tool_target;  // the mount's drawing
-  const auto devices = open_calibration_devices(board, scene, clock);
+  const sim::RobotSimulator* truth = robot_sim.get();
+  const auto devices = open_calibration_devices(board, scene, clock, [truth] { return truth->true_pose(); });
   calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, target);
   rig.connect();
   // The operator's start pose: the target facing the cameras in the middle of the volume.

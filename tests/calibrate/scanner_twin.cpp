@@ -5,8 +5,9 @@
 //       DIR/cal/stereo.yaml (the twin's rig, exact), DIR/target.yaml (the target's
 //       drawing), DIR/captures/{scan<N>.ply,left<N>.png,right<N>.png} and
 //       DIR/truth.yaml (T_camL_sls). The target is placed CAPTURES times near the
-//       door's scan position A (2.8 m from camL), tilted by up to 0.25 rad; the images
-//       come from sim's ChessboardRenderer, the scans from sim's sphere_target_scan.
+//       door's scan position A (2.8 m from camL), tilted by up to 0.25 rad
+//       (simulation::render_scanner_captures: the images from sim's ChessboardRenderer,
+//       the scans from sim's sphere_target_scan).
 //   scanner_twin check DIR SCANNER_YAML MAX_M
 //       the file's T_camL_sls against the truth: the translation error (the sensor's
 //       origin, 0.9 m in front of the door), the rotation error, and the point transfer
@@ -18,14 +19,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/core/eigen.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <random>
 #include <string>
 
-#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/firmware/calibrate/scanner_calibration.h"
+#include "dentmark/firmware/simulation/self_calibration.h"
 #include "dentmark/sim/calibration/calibration_scene.h"
-#include "dentmark/sim/calibration/sphere_target_scan.h"
 
 using namespace dentmark;
 namespace fs = std::filesystem;
@@ -54,49 +52,13 @@ void write_transform(const fs::path& path, const Transform& t) {
 
 int scene(const fs::path& dir, int captures, std::uint64_t seed) {
   const stereo::StereoRig rig = sim::twin_calibration_scene().rig;
-  const sim::SphereTarget target = sim::twin_sphere_target();
   fs::create_directories(dir / "cal");
   fs::create_directories(dir / "captures");
   stereo::write_stereo_yaml(rig, dir / "cal" / "stereo.yaml");
-  calibrate::ScannerTarget drawing;
-  drawing.board = calibrate::parse_target(
-      "chessboard:" + std::to_string(target.board.cols) + "x" + std::to_string(target.board.rows),
-      target.board.square, 0.0, "");
-  drawing.sphere_radius_m = target.sphere_radius;
-  drawing.spheres_board = target.spheres_board;
-  calibrate::write_scanner_target(dir / "target.yaml", drawing);
   const Transform T_camL_sls = true_T_camL_sls();
   write_transform(dir / "truth.yaml", T_camL_sls);
-
-  const sim::ChessboardRenderer renderer(rig, target.board);
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  cv::RNG cv_rng(seed);
-  const Eigen::Vector3d centre_board(0.5 * (target.plate_min.x() + target.plate_max.x()),
-                                     0.5 * (target.plate_min.y() + target.plate_max.y()), 0.0);
-  for (int k = 1; k <= captures; ++k) {
-    // Printed face towards the cameras (board z along −camL z), tilted, moved about A.
-    const Eigen::Matrix3d r =
-        Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() *
-        make_transform_rotvec(Eigen::Vector3d(0.25 * u(rng), 0.25 * u(rng), 0.1 * u(rng)),
-                              Eigen::Vector3d::Zero())
-            .linear();
-    const Eigen::Vector3d c = kPositionA + Eigen::Vector3d(0.1 * u(rng), 0.08 * u(rng), 0.1 * u(rng));
-    const Transform T_camL_board = make_transform(r, c - r * centre_board);
-    const std::string n = std::to_string(k);
-    sim::TargetImaging imaging;
-    cv::imwrite((dir / "captures" / ("left" + n + ".png")).string(),
-                renderer.render(stereo::Eye::kLeft, T_camL_board, imaging, cv_rng));
-    cv::imwrite((dir / "captures" / ("right" + n + ".png")).string(),
-                renderer.render(stereo::Eye::kRight, T_camL_board, imaging, cv_rng));
-    sim::SlsImaging sls;
-    sls.spacing = 0.0015;
-    sls.outlier_fraction = 0.002;
-    sls.seed = seed * 100 + static_cast<std::uint64_t>(k);
-    ingest::Mesh scan;
-    scan.vertices = sim::scan_sphere_target(target, T_camL_sls.inverse() * T_camL_board, sls);
-    ingest::write_ply((dir / "captures" / ("scan" + n + ".ply")).string(), scan);
-  }
+  simulation::render_scanner_captures(rig, T_camL_sls, kPositionA, captures, seed, dir / "captures",
+                                      dir / "target.yaml");
   return 0;
 }
 

@@ -7,6 +7,7 @@
 // calibrate commands (--sim-scene) and by the twin commissioning itself
 // (self_calibration.h).
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -28,9 +29,13 @@ struct CalibrationDevices {
 
 // Throws std::runtime_error (hal errors, a sim board without a scene, a scene with a real
 // camera backend, a scene whose image size differs from the board's).
+// true_tool_pose, when given, says where the simulated tool truly is (the robot
+// simulator's pose with its accuracy error and repeatability); the target is rendered
+// there instead of at the pose the robot reports.
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
                                                              std::optional<sim::CalibrationScene> scene,
-                                                             clock::Clock& clock);
+                                                             clock::Clock& clock,
+                                                             std::function<Transform()> true_tool_pose = {});
 // The same with the scene read from a file (--sim-scene; empty: none).
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
                                                              const std::string& sim_scene,

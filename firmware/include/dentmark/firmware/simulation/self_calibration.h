@@ -5,7 +5,8 @@
 //      of a 9×6 chessboard of 80 mm squares held at 2.4–3.2 m, tilted up to 0.5 rad;
 //   2. robot.yaml: `calibrate robot` live (calibrate_robot_live) against the robot
 //      simulator over Modbus TCP, its 7×6 tool target rendered where the simulated
-//      robot carries it, 20 planned poses, using the stereo.yaml of step 1;
+//      tool truly is (the robot's accuracy error and repeatability included; the robot
+//      reports its nominal pose), 20 planned poses, using the stereo.yaml of step 1;
 //   3. scanner.yaml: `calibrate scanner` (calibrate_scanner_captures) on 3 rendered
 //      captures of the sphere target (sim/calibration/sphere_target_scan.h) at the
 //      door's scan position, using the stereo.yaml of step 1.
