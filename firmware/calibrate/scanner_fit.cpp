@@ -49,11 +49,10 @@ SphereMatch match_spheres(const ScannerTarget& target, const std::vector<ScanSph
   std::iota(perm.begin(), perm.end(), 0);
   SphereMatch best;
   best.rms_m = best.next_rms_m = std::numeric_limits<double>::infinity();
-  std::vector<std::vector<int>> seen;
   do {
+    // Each injective map once: the permutations whose unused tail is in ascending order.
+    if (!std::is_sorted(perm.begin() + static_cast<long>(k), perm.end())) continue;
     std::vector<int> ids(perm.begin(), perm.begin() + static_cast<long>(k));
-    if (std::find(seen.begin(), seen.end(), ids) != seen.end()) continue;
-    seen.push_back(ids);
     std::vector<Eigen::Vector3d> from;
     for (int id : ids) from.push_back(target.spheres_board[static_cast<std::size_t>(id)]);
     RigidFit f;
