@@ -1,7 +1,8 @@
 // `dentmark-edge calibrate stereo`: the tracking pair's calibration from image pairs
 // of a chessboard or ChArUco target; `calibrate robot`: T_base_camL, live (the robot
 // carries its target through planned poses) or from recorded samples (--from-file);
-// `calibrate verify`: does the stored robot calibration still hold
+// `calibrate verify`: does the stored robot calibration still hold; `calibrate scanner`:
+// T_camL_sls from scans and image pairs of the scanner target
 // (docs/calibration.md). Exit 0: written / holds; 1: verify: does not hold (marker
 // written); 2: bad input (nothing written); 3: the result is over the residual limits
 // its loader enforces (nothing written); 4: the robot or a camera failed.
@@ -15,7 +16,6 @@
 #include <string>
 #include <vector>
 
-#include "calibration_devices.h"
 #include "commands.h"
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/common/log.h"
@@ -25,9 +25,11 @@
 #include "dentmark/firmware/calibrate/input_digest.h"
 #include "dentmark/firmware/calibrate/robot_calibration_file.h"
 #include "dentmark/firmware/calibrate/robot_live.h"
+#include "dentmark/firmware/calibrate/scanner_calibration.h"
 #include "dentmark/firmware/calibrate/stereo_calibration_file.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 #include "dentmark/firmware/hal/camera/camera.h"
+#include "dentmark/firmware/simulation/calibration_devices.h"
 #include "dentmark/firmware/station/calibration_marker.h"
 
 namespace dentmark::edge {
@@ -220,7 +222,7 @@ LiveRun run_live(const CalibrateRobotCliOptions& o) {
   LiveRun run;
   run.target = tool_target_of(o.target);
   clock::Clock& clock = clock::monotonic_clock();
-  const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+  const auto devices = simulation::open_calibration_devices(board, o.sim_scene, clock);
   calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, run.target);
   const auto start = std::chrono::steady_clock::now();
   calibrate::LiveCalibration live = calibrate::calibrate_robot_live(
@@ -347,7 +349,7 @@ int run_calibrate_verify(const CalibrateVerifyCliOptions& o) {
     clock::Clock& clock = clock::monotonic_clock();
     calibrate::LiveVerify v;
     try {
-      const auto devices = open_calibration_devices(board, o.sim_scene, clock);
+      const auto devices = simulation::open_calibration_devices(board, o.sim_scene, clock);
       calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, *target);
       calibrate::PosePlanOptions plan = plan_of(board, o.poses);
       plan.halton_offset = 5000;  // other poses than the calibration's
@@ -401,10 +403,80 @@ int run_calibrate_verify(const CalibrateVerifyCliOptions& o) {
   }
 }
 
+struct CalibrateScannerCliOptions {
+  std::string captures, target, calibration, out, scan_unit = "m";
+  bool json = false;
+};
+
+int run_calibrate_scanner(const CalibrateScannerCliOptions& o) {
+  try {
+    const std::filesystem::path dir(o.calibration);
+    const std::string out = !o.out.empty() ? o.out : (dir / "scanner.yaml").string();
+    require_out_folder(out);
+    track::StereoCalibration stereo;
+    try {
+      stereo = track::load_stereo_calibration(dir / "stereo.yaml");
+    } catch (const std::exception& e) {
+      throw calibrate::CalibrateError(e.what());
+    }
+    const calibrate::ScannerTarget target = calibrate::read_scanner_target(o.target);
+    const double scale = o.scan_unit == "mm" ? 0.001 : 1.0;
+    const auto start = std::chrono::steady_clock::now();
+    calibrate::ScannerCalibrationRun run =
+        calibrate::calibrate_scanner_captures(o.captures, target, stereo, scale);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    run.created_utc = calibrate::utc_now_iso8601();
+    run.tool_version = kVersion;
+    const calibrate::ScannerFit& f = run.fit;
+    const calibrate::ScannerResidualLimits lim;
+    char bad[200] = "";
+    if (f.rms_m > lim.max_rms_m)
+      std::snprintf(bad, sizeof bad, "fit RMS %.3f mm > %.3f mm", f.rms_m * 1e3, lim.max_rms_m * 1e3);
+    else if (f.holdout_rms_m > lim.max_holdout_m)
+      std::snprintf(bad, sizeof bad, "hold-out RMS %.3f mm > %.3f mm", f.holdout_rms_m * 1e3,
+                    lim.max_holdout_m * 1e3);
+    if (!*bad) calibrate::write_scanner_calibration(out, run);
+    if (o.json) {
+      nlohmann::json j = nlohmann::json::parse(calibrate::scanner_calibration_json(run));
+      j["written"] = *bad ? std::string() : out;
+      j["wall_seconds"] = seconds;
+      std::cout << j.dump(2) << std::endl;
+    } else {
+      std::printf("capture  spheres  drawing vs scan mm  board corners px\n");
+      for (const calibrate::ScannerCapture& c : run.captures)
+        std::printf("%-8s %7zu  %18.3f  %16.3f\n", c.name.c_str(), c.ids.size(), c.match_rms_m * 1e3,
+                    c.board_rms_px);
+      for (const calibrate::ScannerCapture& c : run.captures)
+        for (const std::string& why : c.not_spheres)
+          std::printf("capture %s: not a sphere: %s\n", c.name.c_str(), why.c_str());
+      std::printf("captures: %d, common points (sphere centres): %d; %.1f s\n", f.captures, f.points,
+                  seconds);
+      std::printf("rigid fit RMS point transfer: %.3f mm, worst point %.3f mm\n", f.rms_m * 1e3,
+                  f.max_m * 1e3);
+      if (f.holdout_rms_m >= 0.0)
+        std::printf("hold-out point transfer (leave one point out): RMS %.3f mm, worst point %.3f mm\n",
+                    f.holdout_rms_m * 1e3, f.holdout_max_m * 1e3);
+      else
+        std::printf("hold-out point transfer: not computed (fewer than 5 common points)\n");
+      if (!*bad) std::printf("written: %s\n", out.c_str());
+    }
+    if (*bad) {
+      log::error(std::string("calibrate scanner: ") + bad + "; " + out +
+                 " not written: check the target's drawing and retake the captures (docs/calibration.md)");
+      return 3;
+    }
+    return 0;
+  } catch (const calibrate::CalibrateError& e) {
+    log::error(e.what());
+    return 2;
+  }
+}
+
 }  // namespace
 
 void register_calibrate(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the station (stereo pair, robot to stereo)");
+  CLI::App* cmd = app.add_subcommand(
+      "calibrate", "Calibrate the station (stereo pair, robot to stereo, scanner to stereo)");
   cmd->require_subcommand(1);
   auto opt = std::make_shared<CalibrateStereoCliOptions>();
   CLI::App* stereo =
@@ -468,6 +540,27 @@ void register_calibrate(CLI::App& app) {
                      "Twin only: the simulated cameras' scene (ground truth)");
   verify->add_flag("--json", vopt->json, "Print the figures as JSON");
   verify->callback([vopt] { exit_code() = run_calibrate_verify(*vopt); });
+  auto sopt = std::make_shared<CalibrateScannerCliOptions>();
+  CLI::App* scanner = cmd->add_subcommand(
+      "scanner",
+      "Scanner-to-stereo calibration (T_camL_sls) from scans and image pairs of the scanner target");
+  scanner
+      ->add_option("--captures", sopt->captures,
+                   "Folder of captures: scan<N>.<ply|xyz|...> with left<N>.<ext> / right<N>.<ext>")
+      ->required();
+  scanner
+      ->add_option("--target", sopt->target,
+                   "The scanner target's file (chessboard, sphere radius and layout)")
+      ->required();
+  scanner
+      ->add_option("--calibration", sopt->calibration,
+                   "Calibration folder (stereo.yaml is read; scanner.yaml is written there by default)")
+      ->required();
+  scanner->add_option("--scan-unit", sopt->scan_unit, "Length unit of the scan files: m (default) or mm")
+      ->check(CLI::IsMember({"m", "mm"}));
+  scanner->add_option("--out", sopt->out, "Calibration file to write (default <calibration>/scanner.yaml)");
+  scanner->add_flag("--json", sopt->json, "Print the figures as JSON");
+  scanner->callback([sopt] { exit_code() = run_calibrate_scanner(*sopt); });
 }
 
 }  // namespace dentmark::edge

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -40,6 +42,8 @@ struct SimulateOptions {
   bool serve = false;
   int port = 0;
   std::vector<std::string> faults;
+  bool self_calibrate = false;
+  std::string calibration_cache;
 };
 
 struct Scenario {
@@ -97,6 +101,16 @@ void print_table(const std::vector<simulation::ScenarioResult>& results) {
   if (n > 0) mean /= n;
   std::printf("\nover %d marks: mean |e_x| %.2f, |e_y| %.2f, |e_z| %.2f mm; worst axis error %.2f mm\n", n,
               mean.x() * 1e3, mean.y() * 1e3, mean.z() * 1e3, worst * 1e3);
+  if (!results.empty()) {
+    const auto& r = results.front();
+    std::printf("calibration (%s): T_base_camL off the truth by %.3f mm, %.3f mrad; T_camL_sls by",
+                r.self_calibrated ? "self-calibrated" : "drawn errors", r.robot_calibration_error * 1e3,
+                r.robot_calibration_rotation * 1e3);
+    for (const auto& x : results)
+      std::printf(" %.3f mm/%.3f mrad", x.scanner_calibration_error * 1e3,
+                  x.scanner_calibration_rotation * 1e3);
+    std::printf("\n");
+  }
 }
 
 nlohmann::json to_json(const simulation::ScenarioResult& r) {
@@ -118,6 +132,11 @@ nlohmann::json to_json(const simulation::ScenarioResult& r) {
           {"frames_offered", r.frames_offered},
           {"sim_seconds", r.sim_seconds},
           {"real_seconds", r.real_seconds},
+          {"self_calibrated", r.self_calibrated},
+          {"robot_calibration_error", r.robot_calibration_error},
+          {"robot_calibration_rotation", r.robot_calibration_rotation},
+          {"scanner_calibration_error", r.scanner_calibration_error},
+          {"scanner_calibration_rotation", r.scanner_calibration_rotation},
           {"marks", marks}};
 }
 
@@ -126,6 +145,15 @@ nlohmann::json to_json(const simulation::ScenarioResult& r) {
 // on any machine; fewer pairs mean the cameras failed, and the marks are not the
 // station's.
 constexpr double kMinFramesTaken = 0.8;
+
+// $XDG_CACHE_HOME/dentmark/twin-calibration, else ~/.cache/..., else the temporary folder.
+std::filesystem::path default_calibration_cache() {
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x != nullptr && *x != '\0')
+    return std::filesystem::path(x) / "dentmark" / "twin-calibration";
+  if (const char* h = std::getenv("HOME"); h != nullptr && *h != '\0')
+    return std::filesystem::path(h) / ".cache" / "dentmark" / "twin-calibration";
+  return std::filesystem::temp_directory_path() / "dentmark-twin-calibration";
+}
 
 int run_simulate(const SimulateOptions& opt) {
   ScanTruth truth;
@@ -173,6 +201,9 @@ int run_simulate(const SimulateOptions& opt) {
     sim.serve = opt.serve;
     sim.faults = faults;
     sim.serve_port = opt.port;
+    if (opt.self_calibrate)
+      sim.self_calibration_cache =
+          opt.calibration_cache.empty() ? default_calibration_cache().string() : opt.calibration_cache;
     try {
       results.push_back(simulation::run_scenario(so, sim, list, truth));
     } catch (const std::exception& e) {
@@ -255,6 +286,12 @@ void register_simulate(CLI::App& app) {
                 "Wait for an outside host to send the list (dentmark send --wait) instead of sending it");
   cmd->add_option("--port", opt->port, "With --serve: the link port (0: any free port, logged)")
       ->check(CLI::Range(0, 65535));
+  cmd->add_flag("--self-calibrate", opt->self_calibrate,
+                "Commission the twin by running the calibrations (stereo, robot live, scanner) on its own "
+                "rendered views instead of drawing calibration errors; cached (--calibration-cache)");
+  cmd->add_option(
+      "--calibration-cache", opt->calibration_cache,
+      "Folder of the self-calibration's cache (default $XDG_CACHE_HOME/dentmark/twin-calibration)");
   cmd->callback([opt] { exit_code() = run_simulate(*opt); });
 }
 

@@ -113,6 +113,8 @@ TargetMeasurement measure_target(const TargetSpec& target, const track::StereoCa
     return m;
   }
   m.T_camL_target = fit_rigid(board, m.points_camL).T_to_from;
+  m.pixels_left = std::move(pl);
+  m.pixels_right = std::move(pr);
   m.found = true;
   return m;
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <thread>
 
@@ -17,6 +18,7 @@
 #include "dentmark/firmware/board/board_config.h"
 #include "dentmark/firmware/daemon/edge_daemon.h"
 #include "dentmark/firmware/hal/gpio/sim_gpio.h"
+#include "dentmark/firmware/simulation/self_calibration.h"
 #include "dentmark/firmware/station/station_calibration.h"
 #include "dentmark/firmware/track/panel_model.h"
 #include "dentmark/sim/robot/robot_simulator.h"
@@ -92,11 +94,18 @@ struct ScratchDir {
 // The station's calibration folder as commissioning would leave it: the rig's stereo
 // calibration, the robot and scanner transforms with the scenario's calibration
 // errors, and the door's panel model taught on the scan's frame.
+// With a self-calibration the three files are the ones the calibration commands made.
 void commission(const Workcell& cell, const stereo::StereoRenderer& renderer, const std::string& panel_id,
-                const fs::path& dir) {
-  stereo::write_stereo_yaml(cell.rig, dir / "stereo.yaml");
-  station::save_transform(dir / "robot.yaml", "T_base_camL", cell.T_base_camL_est, 0.0);
-  station::save_transform(dir / "scanner.yaml", "T_camL_sls", cell.T_camL_sls_est, 0.0);
+                const fs::path& dir, const SelfCalibrationResult* self) {
+  if (self != nullptr) {
+    fs::copy_file(self->stereo_yaml, dir / "stereo.yaml", fs::copy_options::overwrite_existing);
+    fs::copy_file(self->robot_yaml, dir / "robot.yaml", fs::copy_options::overwrite_existing);
+    fs::copy_file(self->scanner_yaml, dir / "scanner.yaml", fs::copy_options::overwrite_existing);
+  } else {
+    stereo::write_stereo_yaml(cell.rig, dir / "stereo.yaml");
+    station::save_transform(dir / "robot.yaml", "T_base_camL", cell.T_base_camL_est, 0.0);
+    station::save_transform(dir / "scanner.yaml", "T_camL_sls", cell.T_camL_sls_est, 0.0);
+  }
   const Transform pose0 = cell.motion.T_camL_panel(0.0);
   cv::RNG rng(1);
   const cv::Mat left = renderer.render(stereo::Eye::kLeft, pose0, {}, rng);
@@ -399,12 +408,15 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   const auto start_time = [&] {
     if (held.exchange(false)) clock.resume();
   };
+  std::optional<SelfCalibrationResult> self;
+  if (!sim.self_calibration_cache.empty())
+    self = self_calibrate(cell, board, robot_config(scenario, sim, cell, board), sim.self_calibration_cache);
   auto robot_sim = sim::RobotSimulator::serve_tcp(robot_config(scenario, sim, cell, board), clock);
   board.modbus.host = "127.0.0.1";
   board.modbus.port = robot_sim->port();
   DoorCameras cameras(cell, scenario, sim, *robot_sim, clock);
   ScratchDir scratch;
-  commission(cell, cameras.renderer(), list.panel_id, scratch.path / "calibration");
+  commission(cell, cameras.renderer(), list.panel_id, scratch.path / "calibration", self ? &*self : nullptr);
 
   daemon::DaemonOptions d;
   d.board = board;
@@ -443,6 +455,23 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
 
   ScenarioResult result;
   result.options = scenario;
+  const auto rotation = [](const Transform& a, const Transform& b) {
+    return Eigen::AngleAxisd((a.inverse() * b).linear()).angle();
+  };
+  result.self_calibrated = self.has_value();
+  if (self) {
+    result.robot_calibration_error = self->robot_translation_error;
+    result.robot_calibration_rotation = self->robot_rotation_error;
+    result.scanner_calibration_error = self->scanner_translation_error;
+    result.scanner_calibration_rotation = self->scanner_rotation_error;
+  } else {
+    result.robot_calibration_error =
+        (cell.T_base_camL_est.translation() - cell.T_base_camL_true.translation()).norm();
+    result.robot_calibration_rotation = rotation(cell.T_base_camL_est, cell.T_base_camL_true);
+    result.scanner_calibration_error =
+        (cell.T_camL_sls_est.translation() - cell.T_camL_sls_true.translation()).norm();
+    result.scanner_calibration_rotation = rotation(cell.T_camL_sls_est, cell.T_camL_sls_true);
+  }
   result.defects_sent = static_cast<int>(list.defects.size());
   const auto finish_run = [&] {
     start_time();

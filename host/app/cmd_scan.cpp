@@ -12,10 +12,10 @@
 
 #include "commands.h"
 #include "dentmark/common/huge_pages.h"
+#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/protocol/dml_file.h"
 #include "dentmark/host/detect/detector.h"
-#include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/ingest/units.h"
 #include "dentmark/host/report/defects_json.h"

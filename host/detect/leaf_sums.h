@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh_view.h"
 #include "dentmark/host/detect/linear_octree.h"
-#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect::detail {
 

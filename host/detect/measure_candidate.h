@@ -8,10 +8,10 @@
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh_view.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/height_map.h"
 #include "dentmark/host/detect/reference_surface.h"
-#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 

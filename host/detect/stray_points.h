@@ -8,8 +8,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 

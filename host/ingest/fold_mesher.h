@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh.h"
 
 namespace dentmark::ingest {
 

@@ -8,7 +8,7 @@
 
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
-#include "dentmark/host/ingest/mesh_writer.h"
+#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/host/report/defects_json.h"
 
 namespace dentmark::report {

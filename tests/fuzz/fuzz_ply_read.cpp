@@ -10,7 +10,7 @@
 #include <optional>
 #include <string_view>
 
-#include "../../host/ingest/readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "dentmark/host/ingest/orient_triangles.h"
 
 namespace in = dentmark::ingest;

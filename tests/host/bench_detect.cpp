@@ -21,10 +21,10 @@
 
 #include "../../host/detect/box_mean.h"
 #include "dentmark/common/huge_pages.h"
+#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/detect/linear_octree.h"
 #include "dentmark/host/detect/reference_surface.h"
-#include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/orient_triangles.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/report/defects_json.h"

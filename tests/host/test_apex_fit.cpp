@@ -11,10 +11,10 @@
 #include <random>
 #include <string>
 
+#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/height_map.h"
 #include "dentmark/host/detect/linear_octree.h"
-#include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
 
 namespace dentmark::detect {

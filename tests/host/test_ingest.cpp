@@ -19,8 +19,8 @@
 #include <tuple>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/cloud_mesher.h"
-#include "dentmark/host/ingest/mesh_writer.h"
 #include "dentmark/host/ingest/read_mesh.h"
 #include "dentmark/host/ingest/units.h"
 

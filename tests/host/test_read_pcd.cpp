@@ -16,8 +16,8 @@
 #include <tuple>
 #include <vector>
 
-#include "../../host/ingest/lzf.h"
-#include "../../host/ingest/readers.h"
+#include "../../common/ingest/lzf.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "dentmark/host/ingest/read_mesh.h"
 
 namespace dentmark::ingest {

@@ -18,9 +18,10 @@ namespace dentmark::calibrate {
 
 struct TargetMeasurement {
   bool found = false;
-  std::string why;                           // when not found
-  std::vector<Eigen::Vector3d> points_camL;  // corner-id order
-  double max_reprojection_px = 0.0;          // worst corner's triangulation residual
+  std::string why;                                     // when not found
+  std::vector<Eigen::Vector3d> points_camL;            // corner-id order
+  std::vector<cv::Point2f> pixels_left, pixels_right;  // the corners found, corner-id order
+  double max_reprojection_px = 0.0;                    // worst corner's triangulation residual
   // The board's pose from its triangulated corners (rigid fit to the board's own
   // coordinates): a first guess for planning, not used by the fit.
   Transform T_camL_target = Transform::Identity();

@@ -50,6 +50,11 @@ struct ScenarioResult {
   // and the marks are not the station's.
   long frames_offered = 0;
   double sim_seconds = 0.0, real_seconds = 0.0;
+  // The station's calibration against the truth (drawn or self-calibrated): translation
+  // (m) and rotation (rad) errors of T_base_camL and T_camL_sls.
+  bool self_calibrated = false;
+  double robot_calibration_error = 0.0, robot_calibration_rotation = 0.0;
+  double scanner_calibration_error = 0.0, scanner_calibration_rotation = 0.0;
 };
 
 // A fault the twin injects, `after` seconds after marking starts.
@@ -79,6 +84,10 @@ struct SimulationOptions {
   // Faults injected while the station marks (dentmark-edge simulate --fault KIND@T).
   std::vector<Fault> faults;
   std::string board_file;  // the twin's board (empty: boards/sim/twin/board.yaml of this source tree)
+  // Commission the station with its own calibration commands on rendered views, cached
+  // in this folder (self_calibration.h), instead of the scenario's drawn calibration
+  // errors. Empty: drawn errors.
+  std::string self_calibration_cache;
   // Serve an outside host (`dentmark send --wait`) on this port (0: any, logged)
   // instead of sending the list from inside. Time stands still until the list comes;
   // then the twin's clock jumps over the scan's age (send_time − scan_time) and the line

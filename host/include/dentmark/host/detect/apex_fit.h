@@ -7,8 +7,8 @@
 #include <optional>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh_view.h"
 #include "dentmark/host/detect/height_map.h"
-#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 

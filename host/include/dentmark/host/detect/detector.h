@@ -9,10 +9,10 @@
 #include <utility>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh_view.h"
 #include "dentmark/common/protocol/messages.h"
 #include "dentmark/host/detect/config.h"
 #include "dentmark/host/detect/height_map.h"
-#include "dentmark/host/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 

@@ -14,7 +14,7 @@
 #include <new>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::detect {
 

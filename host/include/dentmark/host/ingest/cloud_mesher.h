@@ -8,7 +8,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh.h"
 
 namespace dentmark::ingest {
 

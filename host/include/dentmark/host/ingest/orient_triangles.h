@@ -9,8 +9,8 @@
 #include <cstddef>
 #include <optional>
 
-#include "dentmark/host/ingest/mesh.h"
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
 

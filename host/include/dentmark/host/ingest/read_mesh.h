@@ -1,26 +1,17 @@
 #pragma once
-// Reads a scan (PLY ascii/binary LE/BE, OBJ, STL ascii/binary, XYZ text, PCD ascii/binary/
-// binary_compressed) into a Mesh. Point clouds (PLY without faces, XYZ, PCD) are meshed in the sensor's view
-// (2.5D).
+// Reads a scan (PLY ascii/binary LE/BE, OBJ, STL ascii/binary, XYZ text) into a Mesh.
+// Point clouds (PLY without faces, XYZ) are meshed in the sensor's view (2.5D).
 
 #include <cstddef>
 #include <functional>
 #include <memory>
 #include <string>
 
-#include "dentmark/host/ingest/mesh.h"
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh_view.h"
+#include "dentmark/common/ingest/read_scan_file.h"
 
 namespace dentmark::ingest {
-
-enum class Format { kAuto, kPly, kObj, kStl, kXyz, kPcd };
-
-struct ReadOptions {
-  double scale_to_m = 1.0;  // file units -> metres (mm files: 0.001)
-  Format format = Format::kAuto;
-  // Called with the fraction done (0..1) while reading big files; may be empty.
-  std::function<void(double)> progress;
-};
 
 // Throws IngestError naming the file and the line or byte offset.
 Mesh read_mesh(const std::string& path, const ReadOptions& options = {});
@@ -41,10 +32,5 @@ struct Scan {
 
 // Throws IngestError naming the file and the line or byte offset.
 Scan open_scan(const std::string& path, const ReadOptions& options = {});
-
-// Format from the file name's extension (case-insensitive); kAuto if unknown. A file with
-// no known extension is told by its content (PLY, PCD or STL); anything else is refused
-// as an unknown format.
-Format format_from_path(const std::string& path);
 
 }  // namespace dentmark::ingest

@@ -6,7 +6,7 @@
 #include <cstddef>
 #include <functional>
 
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
 

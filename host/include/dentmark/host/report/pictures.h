@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "dentmark/common/ingest/mesh.h"
 #include "dentmark/host/detect/detector.h"
-#include "dentmark/host/ingest/mesh.h"
 #include "dentmark/host/report/report_layout.h"
 
 namespace cv {

@@ -1,4 +1,4 @@
-#include "dentmark/host/ingest/mesh_writer.h"
+#include "dentmark/common/ingest/mesh_writer.h"
 
 #include <algorithm>
 #include <cerrno>

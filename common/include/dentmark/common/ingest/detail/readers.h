@@ -6,8 +6,8 @@
 #include <string>
 #include <string_view>
 
-#include "dentmark/host/ingest/mesh.h"
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::ingest::detail {
 

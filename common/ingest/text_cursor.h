@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh.h"
 
 namespace dentmark::ingest::detail {
 

@@ -13,7 +13,7 @@
 #include <memory>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh.h"
 
 namespace dentmark::ingest {
 

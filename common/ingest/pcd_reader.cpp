@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "lzf.h"
-#include "readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "text_cursor.h"
 
 namespace dentmark::ingest::detail {

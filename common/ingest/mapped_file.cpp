@@ -1,4 +1,4 @@
-#include "mapped_file.h"
+#include "dentmark/common/ingest/detail/mapped_file.h"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "dentmark/host/ingest/mesh.h"
+#include "dentmark/common/ingest/mesh.h"
 
 #ifdef _OPENMP
 #include <omp.h>

@@ -2,7 +2,7 @@
 // polygons are triangulated as fans; every other statement is skipped.
 #include <vector>
 
-#include "readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "text_cursor.h"
 
 namespace dentmark::ingest::detail {

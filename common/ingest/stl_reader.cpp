@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "text_cursor.h"
 
 namespace dentmark::ingest::detail {

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "dentmark/host/ingest/mesh_view.h"
+#include "dentmark/common/ingest/mesh_view.h"
 
 namespace dentmark::ingest {
 

@@ -6,7 +6,7 @@
 #include <limits>
 #include <vector>
 
-#include "readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 
 namespace dentmark::ingest::detail {
 namespace {

@@ -11,7 +11,7 @@
 #include <charconv>
 #include <string>
 
-#include "readers.h"
+#include "dentmark/common/ingest/detail/readers.h"
 #include "text_cursor.h"
 
 namespace dentmark::ingest::detail {
