@@ -35,6 +35,15 @@
 namespace dentmark::edge {
 namespace {
 
+// Into 'bad': why a fit's residuals are over their limits (m); left empty when within.
+void residuals_over(double rms_m, double max_rms_m, double holdout_m, double max_holdout_m, char* bad,
+                    std::size_t size) {
+  if (rms_m > max_rms_m)
+    std::snprintf(bad, size, "fit RMS %.3f mm > %.3f mm", rms_m * 1e3, max_rms_m * 1e3);
+  else if (holdout_m > max_holdout_m)
+    std::snprintf(bad, size, "hold-out RMS %.3f mm > %.3f mm", holdout_m * 1e3, max_holdout_m * 1e3);
+}
+
 struct CalibrateStereoCliOptions {
   std::string images;
   std::string pattern;
@@ -282,12 +291,8 @@ int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
     const calibrate::RobotFit& f = run.fit;
     const calibrate::RobotResidualLimits lim;
     char bad[200] = "";
-    if (f.rms_m > lim.max_rms_m)
-      std::snprintf(bad, sizeof bad, "fit RMS %.3f mm > %.3f mm", f.rms_m * 1e3, lim.max_rms_m * 1e3);
-    else if (f.holdout_rms_m > lim.max_holdout_m)
-      std::snprintf(bad, sizeof bad, "hold-out RMS %.3f mm > %.3f mm", f.holdout_rms_m * 1e3,
-                    lim.max_holdout_m * 1e3);
-    else if (f.handeye_translation_diff_m > lim.max_handeye_translation_m)
+    residuals_over(f.rms_m, lim.max_rms_m, f.holdout_rms_m, lim.max_holdout_m, bad, sizeof bad);
+    if (!*bad && f.handeye_translation_diff_m > lim.max_handeye_translation_m)
       std::snprintf(bad, sizeof bad, "hand-eye cross-check differs by %.3f mm > %.3f mm",
                     f.handeye_translation_diff_m * 1e3, lim.max_handeye_translation_m * 1e3);
     if (!*bad) {
@@ -430,11 +435,7 @@ int run_calibrate_scanner(const CalibrateScannerCliOptions& o) {
     const calibrate::ScannerFit& f = run.fit;
     const calibrate::ScannerResidualLimits lim;
     char bad[200] = "";
-    if (f.rms_m > lim.max_rms_m)
-      std::snprintf(bad, sizeof bad, "fit RMS %.3f mm > %.3f mm", f.rms_m * 1e3, lim.max_rms_m * 1e3);
-    else if (f.holdout_rms_m > lim.max_holdout_m)
-      std::snprintf(bad, sizeof bad, "hold-out RMS %.3f mm > %.3f mm", f.holdout_rms_m * 1e3,
-                    lim.max_holdout_m * 1e3);
+    residuals_over(f.rms_m, lim.max_rms_m, f.holdout_rms_m, lim.max_holdout_m, bad, sizeof bad);
     if (!*bad) calibrate::write_scanner_calibration(out, run);
     if (o.json) {
       nlohmann::json j = nlohmann::json::parse(calibrate::scanner_calibration_json(run));

@@ -7,6 +7,8 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "dentmark/host/report/defects_json.h"
+
 namespace dentmark::report {
 
 namespace {
@@ -41,20 +43,10 @@ __attribute__((format(printf, 1, 2))) std::string format(const char* fmt, ...) {
   return b;
 }
 
+// The class as the report's table and legend name it: class_name, with "feature" for a
+// design feature (the column is narrow).
 const char* class_word(protocol::DefectClass c) {
-  switch (c) {
-    case protocol::DefectClass::kDent:
-      return "dent";
-    case protocol::DefectClass::kBump:
-      return "bump";
-    case protocol::DefectClass::kHole:
-      return "hole";
-    case protocol::DefectClass::kDesignFeature:
-      return "feature";
-    case protocol::DefectClass::kNoise:
-      return "noise";
-  }
-  return "?";
+  return c == protocol::DefectClass::kDesignFeature ? "feature" : class_name(c);
 }
 
 std::vector<TextItem> title_lines(const detect::Detection& det, const ReportInfo& info, double range) {
