@@ -21,8 +21,8 @@
 #include <optional>
 #include <vector>
 
-#include "lzf.h"
 #include "dentmark/common/ingest/detail/readers.h"
+#include "lzf.h"
 #include "text_cursor.h"
 
 namespace dentmark::ingest::detail {

@@ -4,8 +4,8 @@
 
 #include <fstream>
 
-#include "dentmark/sim/scan/truth_file.h"
 #include "../support/temp_dir.h"
+#include "dentmark/sim/scan/truth_file.h"
 
 namespace dentmark::sim::scan {
 namespace {
