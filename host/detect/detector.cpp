@@ -90,6 +90,86 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
                          std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts, int facing,
                          const DetectConfig& cfg, Detection out);
 
+// The holes' pixels and what was seen through them, widened by 2 mm: their rim is theirs,
+// not a dent's.
+cv::Mat hole_zone_of(const std::vector<HoleRegion>& holes, int rows, int cols, double h) {
+  cv::Mat zone(rows, cols, CV_8U, cv::Scalar(0));
+  for (const auto& hr : holes) {
+    for (auto k : hr.pixels) zone.data[k] = 255;
+    for (auto k : hr.seen_deep) zone.data[k] = 255;
+  }
+  const int rad = std::max(2, static_cast<int>(std::lround(0.002 / h)));
+  dilate_in_strips(zone, zone, cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
+  return zone;
+}
+
+// The 8-connected components of 'any' (labels: their numbers, 0 for none), each with its
+// pixels, its shape, and whether the deviation test ('cand') flagged any of them; index
+// 0 is the background.
+std::vector<Candidate> candidate_components(const cv::Mat& any, const cv::Mat& cand, const HeightMap& map,
+                                            const cv::Mat& edge_zone, cv::Mat& labels) {
+  const int ncomp = cv::connectedComponents(any, labels, 8, CV_32S);
+  std::vector<Candidate> comps(static_cast<std::size_t>(std::max(ncomp, 1)));
+  const int* lab = labels.ptr<int>();
+  for (std::int32_t k = 0; k < map.rows * map.cols; ++k)
+    if (lab[k] > 0) {
+      comps[static_cast<std::size_t>(lab[k])].pixels.push_back(k);
+      if (cand.data[k]) comps[static_cast<std::size_t>(lab[k])].has_deviation = true;
+    }
+  for (auto& comp : comps)
+    if (!comp.pixels.empty()) comp.shape = shape_of(comp.pixels, map, edge_zone);
+  return comps;
+}
+
+// The scan's own samples under the candidates' bounding boxes (2 pixels wider), for
+// their apex depth.
+PixelSamples samples_around(const ingest::MeshView& mesh, const HeightMap& map,
+                            const std::vector<const Candidate*>& candidates) {
+  const int rows = map.rows, cols = map.cols;
+  std::vector<std::uint8_t> select(map.size(), 0);
+  for (const Candidate* comp : candidates) {
+    int c0 = cols, c1 = 0, r0 = rows, r1 = 0;
+    for (auto k : comp->pixels)
+      c0 = std::min(c0, k % cols), c1 = std::max(c1, k % cols), r0 = std::min(r0, k / cols),
+      r1 = std::max(r1, k / cols);
+    for (int r = std::max(0, r0 - 2); r <= std::min(rows - 1, r1 + 2); ++r)
+      std::fill_n(select.begin() + r * cols + std::max(0, c0 - 2),
+                  std::min(cols - 1, c1 + 2) - std::max(0, c0 - 2) + 1, 1);
+  }
+  return PixelSamples(mesh, map, select);
+}
+
+// A measured candidate as a finding: where it is, its size and score, and its class with
+// the reason (an outlier's spike, rough surroundings, under the noise-adapted threshold,
+// or a dent or bump). 'sigma3': the deviation noise at the finest scale.
+Finding classify_candidate(const Candidate& comp, const Measurement& m, const Eigen::Vector3d& normal,
+                           const HeightMap& map, const DetectConfig& cfg, double sigma3, bool outlier) {
+  Finding f;
+  f.pixels = static_cast<int>(comp.pixels.size());
+  protocol::Defect& d = f.defect;
+  d.position = map.to_scan(m.position.x(), m.position.y(), m.position.z());
+  d.normal = normal;
+  d.height = m.height;
+  d.diameter = std::max(map.pixel, 4.0 * m.half_radius);
+  d.area = std::numbers::pi * 0.25 * d.diameter * d.diameter;
+  const double snr = std::abs(m.peak_deviation) / sigma3;
+  d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
+  if (outlier || m.single_sample) {
+    d.defect_class = protocol::DefectClass::kNoise;
+    f.reason = "isolated spike (outlier)";
+  } else if (m.rough_surroundings) {
+    d.defect_class = protocol::DefectClass::kDesignFeature;
+    f.reason = "surroundings not a smooth panel (between features)";
+  } else if (std::abs(m.height) < cfg.min_height || snr < cfg.detection_sigma) {
+    d.defect_class = protocol::DefectClass::kNoise;
+    f.reason = "below the noise-adapted threshold";
+  } else {
+    d.defect_class = m.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
+    f.reason = m.height < 0 ? "depression" : "protrusion";
+  }
+  return f;
+}
+
 // With a background found, the spacing was measured over it too, and the finest node
 // follows the spacing: the panel's own spacing if its finest node differs by more than
 // 10 % from h, else 0.
@@ -302,16 +382,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
 
   // --- Holes: enclosed regions seen through; their rim is theirs, not a dent's ---
   const std::vector<HoleRegion> holes = find_holes(map, dev, ref, cfg.hole_depth, cfg.max_hole_diameter);
-  cv::Mat hole_zone(rows, cols, CV_8U, cv::Scalar(0));
-  for (const auto& hr : holes) {
-    for (auto k : hr.pixels) hole_zone.data[k] = 255;
-    for (auto k : hr.seen_deep) hole_zone.data[k] = 255;
-  }
-  {
-    const int rad = std::max(2, static_cast<int>(std::lround(0.002 / h)));
-    dilate_in_strips(hole_zone, hole_zone,
-                     cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rad + 1, 2 * rad + 1}));
-  }
+  const cv::Mat hole_zone = hole_zone_of(holes, rows, cols, h);
   cand &= ~hole_zone;
 
   // --- Candidates: deviation test or eq. (3)-(4) feature groups ---
@@ -330,18 +401,8 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const cv::Mat not_surface = any | spike;                       // left out of the normals' plane fits
   const cv::Mat not_ring = not_surface | edge_zone | hole_zone;  // and of the local references
   cv::Mat labels;
-  const int ncomp = cv::connectedComponents(any, labels, 8, CV_32S);
-  std::vector<Candidate> comps(static_cast<std::size_t>(std::max(ncomp, 1)));
-  {
-    const int* lab = labels.ptr<int>();
-    for (std::int32_t k = 0; k < rows * cols; ++k)
-      if (lab[k] > 0) {
-        comps[static_cast<std::size_t>(lab[k])].pixels.push_back(k);
-        if (cand.data[k]) comps[static_cast<std::size_t>(lab[k])].has_deviation = true;
-      }
-    for (auto& comp : comps)
-      if (!comp.pixels.empty()) comp.shape = shape_of(comp.pixels, map, edge_zone);
-  }
+  const std::vector<Candidate> comps = candidate_components(any, cand, map, edge_zone, labels);
+  const int ncomp = static_cast<int>(comps.size());
   detail::side_by_side([&] { out.labels.assign(map.size(), -1); },
                        [&] { out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size()); });
   const double sigma3 = std::max(deviation.scale_sigma.front(), 1e-9);
@@ -362,20 +423,10 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   // The scan's own samples under the dent and bump candidates, for their apex depth.
   // Design features need none.
   const bool coarse = scales.front() < 3;
-  const PixelSamples samples = [&] {
-    std::vector<std::uint8_t> select(map.size(), 0);
-    for (const Candidate& comp : comps) {
-      if (comp.pixels.empty() || reason_for_design(comp)) continue;
-      int c0 = cols, c1 = 0, r0 = rows, r1 = 0;
-      for (auto k : comp.pixels)
-        c0 = std::min(c0, k % cols), c1 = std::max(c1, k % cols), r0 = std::min(r0, k / cols),
-        r1 = std::max(r1, k / cols);
-      for (int r = std::max(0, r0 - 2); r <= std::min(rows - 1, r1 + 2); ++r)
-        std::fill_n(select.begin() + r * cols + std::max(0, c0 - 2),
-                    std::min(cols - 1, c1 + 2) - std::max(0, c0 - 2) + 1, 1);
-    }
-    return PixelSamples(mesh, map, select);
-  }();
+  std::vector<const Candidate*> measurable;
+  for (const Candidate& comp : comps)
+    if (!comp.pixels.empty() && !reason_for_design(comp)) measurable.push_back(&comp);
+  const PixelSamples samples = samples_around(mesh, map, measurable);
   lap("samples");
 
   const CandidateScene scene{mesh,           map,    reference, ref,        not_ring,
@@ -414,33 +465,12 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
       out.features.push_back(design_finding(comp, map, out.deviation, why));
       continue;
     }
-    Finding f;
-    f.pixels = static_cast<int>(comp.pixels.size());
+    const bool outlier =
+        !comp.has_deviation &&
+        (shape.length < std::max(cfg.min_diameter, 2.5 * st.spacing) || touches_spike(comp.pixels));
+    Finding f = classify_candidate(comp, measured[static_cast<std::size_t>(ci)],
+                                   normals[static_cast<std::size_t>(ci)], map, cfg, sigma3, outlier);
     protocol::Defect& d = f.defect;
-
-    const Measurement& m = measured[static_cast<std::size_t>(ci)];
-    d.position = map.to_scan(m.position.x(), m.position.y(), m.position.z());
-    d.normal = normals[static_cast<std::size_t>(ci)];
-    d.height = m.height;
-    d.diameter = std::max(h, 4.0 * m.half_radius);
-    d.area = std::numbers::pi * 0.25 * d.diameter * d.diameter;
-    const double snr = std::abs(m.peak_deviation) / sigma3;
-    d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
-    const double min_extent = std::max(cfg.min_diameter, 2.5 * st.spacing);
-    if ((!comp.has_deviation && (shape.length < min_extent || touches_spike(comp.pixels))) ||
-        m.single_sample) {
-      d.defect_class = protocol::DefectClass::kNoise;
-      f.reason = "isolated spike (outlier)";
-    } else if (m.rough_surroundings) {
-      d.defect_class = protocol::DefectClass::kDesignFeature;
-      f.reason = "surroundings not a smooth panel (between features)";
-    } else if (std::abs(m.height) < cfg.min_height || snr < cfg.detection_sigma) {
-      d.defect_class = protocol::DefectClass::kNoise;
-      f.reason = "below the noise-adapted threshold";
-    } else {
-      d.defect_class = m.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
-      f.reason = m.height < 0 ? "depression" : "protrusion";
-    }
     const bool is_defect =
         d.defect_class == protocol::DefectClass::kDent || d.defect_class == protocol::DefectClass::kBump;
     const int label =
