@@ -73,9 +73,90 @@ void write_defect_list(const DetectArgs& a, const detect::Detection& det) {
   protocol::write_dml(a.out, list);
 }
 
+// Opens the scan in the units asked for; with --units auto, a scan that looks like
+// millimetres is read again as such. 'spacing': the point spacing measured on the way
+// (detection needs it too), kept only when the scan was read as metres. Throws IngestError.
+ingest::Scan open_scan_in_units(const DetectArgs& a, bool tty, std::optional<double>& spacing) {
+  ingest::ReadOptions ro;
+  ro.scale_to_m = a.units == "mm" ? 1e-3 : 1.0;
+  if (tty) ro.progress = [](double f) { std::fprintf(stderr, "\rreading %3.0f %%", 100 * f); };
+  ingest::Scan scan = ingest::open_scan(a.scan, ro);
+  if (a.units != "auto") return scan;
+  const ingest::ScaleEvidence e = ingest::measure_scale(scan.mesh);
+  spacing = e.spacing;
+  if (!ingest::looks_like_millimetres(e)) return scan;
+  spacing.reset();
+  char note[256];
+  std::snprintf(
+      note, sizeof note,
+      "%s: read as millimetres: it spans %.4g units, its samples %.3g apart (--units m to override)",
+      a.scan.c_str(), e.extent, e.spacing);
+  if (tty) std::fprintf(stderr, "\n");
+  log::info(note);
+  ro.scale_to_m = 1e-3;
+  return ingest::open_scan(a.scan, ro);
+}
+
+// What detection did to the scan besides finding defects, one line each.
+void log_scan_notes(const std::string& file, const ingest::Scan& scan, const detect::DetectionStats& st) {
+  if (scan.cloud_charts > 0)
+    log::info(file + ": the point cloud folds over in the sensor's view (merged views?): meshed in " +
+              std::to_string(scan.cloud_charts) + " charts");
+  if (st.rewound_triangles > 0)
+    log::info(file + ": " + std::to_string(st.rewound_triangles) +
+              " triangles were wound against their neighbours (a merged or re-exported mesh?): rewound");
+  if (st.stray_triangles > 0)
+    log::info(file + ": " + std::to_string(st.stray_triangles) +
+              " triangles reach stray points far off the panel: left out");
+  if (st.background_area > 0.0)
+    log::info(file + ": " + std::to_string(static_cast<int>(std::lround(st.background_area * 1e4))) +
+              " cm² of background (a surface far behind the panel) left out");
+  if (st.charts > 1)
+    log::info(file + ": the surface wraps round (over 45° from its mean normal): inspected in " +
+              std::to_string(st.charts) + " charts (the report shows each)");
+}
+
+// The files asked for: defect list, JSON, report PNG, marked PLY. Throws on failure.
+void write_outputs(const DetectArgs& a, const ingest::Scan& scan, const detect::Detection& det) {
+  if (!a.out.empty()) write_defect_list(a, det);
+  report::SourceInfo src{a.scan, scan.input_points, scan.mesh.triangle_count()};
+  if (!a.json.empty()) {
+    auto j = report::defects_to_json(det, src);
+    j["timing"]["write"] = 0.0;
+    report::write_text_file(a.json, j.dump(2) + "\n");
+  }
+  if (!a.report.empty())
+    report::write_report_png(a.report, det,
+                             {a.scan, utc_minutes(a.scan_time.value_or(scan_file_time(a.scan)))});
+  if (!a.ply.empty()) report::write_marked_ply(a.ply, scan.mesh, det);
+}
+
+// --verbose: the scan's figures, memory and the time of each stage.
+void print_details(const detect::Detection& det, double write_s, double total_s) {
+  const auto& s = det.stats;
+  std::printf(
+      "scan: spacing %.3f mm, finest node %.3f mm (depth %d), %zu leaves, normal noise floor %.3f "
+      "(spread %.3f, leaf threshold %.3f), %zu feature leaves in %zu groups, deviation noise %.1f um, "
+      "working memory %.1f B/triangle\n",
+      1e3 * s.spacing, 1e3 * s.leaf_size, s.depth, s.leaves, s.noise_floor_sigma, s.noise_floor_spread,
+      s.leaf_sigma_threshold, s.feature_leaves, s.feature_groups, 1e6 * s.deviation_noise,
+      static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
+  struct rusage usage {};
+  ::getrusage(RUSAGE_SELF, &usage);
+  std::printf("memory: %s (%.0f MB in use), peak resident %.0f MB (the mapped scan included)\n",
+              huge_pages_requested() ? "huge pages requested" : "small pages",
+              static_cast<double>(huge_page_bytes_in_use()) / (1 << 20),
+              static_cast<double>(usage.ru_maxrss) / 1024.0);
+  for (const auto& [stage, sec] : det.timing) std::printf("timing %-10s %8.3f s\n", stage.c_str(), sec);
+  std::printf("timing %-10s %8.3f s\ntiming %-10s %8.3f s\n", "write", write_s, "total", total_s);
+}
+
 int run_detect(const DetectArgs& a) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
+  const auto seconds_since = [](Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+  };
   const bool tty = ::isatty(2) != 0;
   detect::DetectConfig config;
   try {
@@ -84,37 +165,16 @@ int run_detect(const DetectArgs& a) {
     log::error(e.what());
     return 2;
   }
-  ingest::Scan scan;
-  ingest::ReadOptions ro;
-  ro.scale_to_m = a.units == "mm" ? 1e-3 : 1.0;
-  if (tty) ro.progress = [](double f) { std::fprintf(stderr, "\rreading %3.0f %%", 100 * f); };
-  // The point spacing, where measure_scale measured it on the mesh as detected (not read
-  // again in millimetres): detection needs it too.
   std::optional<double> spacing;
+  ingest::Scan scan;
   try {
-    scan = ingest::open_scan(a.scan, ro);
-    if (a.units == "auto") {
-      const ingest::ScaleEvidence e = ingest::measure_scale(scan.mesh);
-      spacing = e.spacing;
-      if (ingest::looks_like_millimetres(e)) {
-        spacing.reset();
-        char note[256];
-        std::snprintf(note, sizeof note,
-                      "%s: read as millimetres: it spans %.4g units, its samples %.3g apart "
-                      "(--units m to override)",
-                      a.scan.c_str(), e.extent, e.spacing);
-        if (tty) std::fprintf(stderr, "\n");
-        log::info(note);
-        ro.scale_to_m = 1e-3;
-        scan = ingest::open_scan(a.scan, ro);
-      }
-    }
+    scan = open_scan_in_units(a, tty, spacing);
   } catch (const ingest::IngestError& e) {
     if (tty) std::fprintf(stderr, "\n");
     log::error(e.what());
     return 2;
   }
-  const auto t_read = Clock::now();
+  const double read_s = seconds_since(start);
   const ingest::MeshView& mesh = scan.mesh;
   if (tty) std::fprintf(stderr, "\rdetecting on %zu triangles...", mesh.triangle_count());
   detect::Detection det;
@@ -126,40 +186,16 @@ int run_detect(const DetectArgs& a) {
     return 2;
   }
   if (tty) std::fprintf(stderr, "\r%*s\r", 60, "");
-  if (scan.cloud_charts > 0)
-    log::info(a.scan + ": the point cloud folds over in the sensor's view (merged views?): meshed in " +
-              std::to_string(scan.cloud_charts) + " charts");
-  if (det.stats.rewound_triangles > 0)
-    log::info(a.scan + ": " + std::to_string(det.stats.rewound_triangles) +
-              " triangles were wound against their neighbours (a merged or re-exported mesh?): rewound");
-  if (det.stats.stray_triangles > 0)
-    log::info(a.scan + ": " + std::to_string(det.stats.stray_triangles) +
-              " triangles reach stray points far off the panel: left out");
-  if (det.stats.background_area > 0.0)
-    log::info(a.scan + ": " + std::to_string(static_cast<int>(std::lround(det.stats.background_area * 1e4))) +
-              " cm² of background (a surface far behind the panel) left out");
-  if (det.stats.charts > 1)
-    log::info(a.scan + ": the surface wraps round (over 45° from its mean normal): inspected in " +
-              std::to_string(det.stats.charts) + " charts (the report shows each)");
-  det.timing.insert(det.timing.begin(), {"read", std::chrono::duration<double>(t_read - start).count()});
+  log_scan_notes(a.scan, scan, det.stats);
+  det.timing.insert(det.timing.begin(), {"read", read_s});
   const auto t_detect = Clock::now();
   try {
-    if (!a.out.empty()) write_defect_list(a, det);
-    report::SourceInfo src{a.scan, scan.input_points, mesh.triangle_count()};
-    if (!a.json.empty()) {
-      auto j = report::defects_to_json(det, src);
-      j["timing"]["write"] = 0.0;
-      report::write_text_file(a.json, j.dump(2) + "\n");
-    }
-    if (!a.report.empty())
-      report::write_report_png(a.report, det,
-                               {a.scan, utc_minutes(a.scan_time.value_or(scan_file_time(a.scan)))});
-    if (!a.ply.empty()) report::write_marked_ply(a.ply, mesh, det);
+    write_outputs(a, scan, det);
   } catch (const std::exception& e) {
     log::error(e.what());
     return 1;
   }
-  const auto end = Clock::now();
+  const double write_s = seconds_since(t_detect);
   std::printf("%s: %zu triangles, %zu defects (%zu other features)\n", a.scan.c_str(), mesh.triangle_count(),
               det.defects.size(), det.features.size());
   for (const auto& f : det.defects) {
@@ -168,26 +204,7 @@ int run_detect(const DetectArgs& a) {
                 report::class_name(d.defect_class), d.position.x(), d.position.y(), d.position.z(),
                 1e3 * d.diameter, 1e3 * d.height, d.score);
   }
-  if (a.verbose) {
-    const auto& s = det.stats;
-    std::printf(
-        "scan: spacing %.3f mm, finest node %.3f mm (depth %d), %zu leaves, normal noise floor %.3f "
-        "(spread %.3f, leaf threshold %.3f), %zu feature leaves in %zu groups, deviation noise %.1f um, "
-        "working memory %.1f B/triangle\n",
-        1e3 * s.spacing, 1e3 * s.leaf_size, s.depth, s.leaves, s.noise_floor_sigma, s.noise_floor_spread,
-        s.leaf_sigma_threshold, s.feature_leaves, s.feature_groups, 1e6 * s.deviation_noise,
-        static_cast<double>(s.working_bytes) / std::max<std::size_t>(1, s.triangles));
-    struct rusage usage {};
-    ::getrusage(RUSAGE_SELF, &usage);
-    std::printf("memory: %s (%.0f MB in use), peak resident %.0f MB (the mapped scan included)\n",
-                huge_pages_requested() ? "huge pages requested" : "small pages",
-                static_cast<double>(huge_page_bytes_in_use()) / (1 << 20),
-                static_cast<double>(usage.ru_maxrss) / 1024.0);
-    for (const auto& [stage, sec] : det.timing) std::printf("timing %-10s %8.3f s\n", stage.c_str(), sec);
-    std::printf("timing %-10s %8.3f s\ntiming %-10s %8.3f s\n", "write",
-                std::chrono::duration<double>(end - t_detect).count(), "total",
-                std::chrono::duration<double>(end - start).count());
-  }
+  if (a.verbose) print_details(det, write_s, seconds_since(start));
   return 0;
 }
 
