@@ -6,9 +6,9 @@
 #include <functional>
 #include <opencv2/calib3d.hpp>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/stereo_calibration_file.h"
 #include "dentmark/firmware/track/track_error.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -85,7 +85,7 @@ class CalibrationFile : public ::testing::Test {
     out.release();
     return p;
   }
-  TempDir dir_{"calib-file"};
+  ::dentmark::test::TempDir dir_{"calib-file"};
 };
 
 TEST_F(CalibrationFile, WrittenFileLoadsWithTheSameValues) {

@@ -4,10 +4,10 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/input_digest.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -54,7 +54,7 @@ TEST(TargetOption, ParsesAndRefuses) {
 }
 
 TEST(ImagePairs, PairsByNumberAndIgnoresOtherFiles) {
-  TempDir d("calib-pairs");
+  ::dentmark::test::TempDir d("calib-pairs");
   touch(d.path() / "left1.png");
   touch(d.path() / "right01.png");
   touch(d.path() / "LEFT10.JPG");
@@ -69,7 +69,7 @@ TEST(ImagePairs, PairsByNumberAndIgnoresOtherFiles) {
 }
 
 TEST(ImagePairs, RefusesEmptyUnpairedAndDuplicate) {
-  TempDir d("calib-pairs-bad");
+  ::dentmark::test::TempDir d("calib-pairs-bad");
   EXPECT_EQ(error_of([&] { find_image_pairs(d.path()); }),
             d.path().string() +
                 ": no image pairs (expected left<N>.<ext> and right<N>.<ext>, ext png, jpg, jpeg, bmp, tif "
@@ -86,7 +86,7 @@ TEST(ImagePairs, RefusesEmptyUnpairedAndDuplicate) {
 }
 
 TEST(ImagePairs, RefusesImagesOfDifferentSizes) {
-  TempDir d("calib-sizes");
+  ::dentmark::test::TempDir d("calib-sizes");
   for (int i = 1; i <= 6; ++i) {
     const std::string n = "0" + std::to_string(i);
     cv::imwrite((d.path() / ("left" + n + ".png")).string(), cv::Mat(480, 640, CV_8UC1, cv::Scalar(0)));
@@ -105,7 +105,7 @@ TEST(ImagePairs, RefusesImagesOfDifferentSizes) {
 TEST(InputDigest, Sha256OfSettingsAndFiles) {
   // FIPS 180-2 test vector: SHA-256("abc").
   EXPECT_EQ(inputs_sha256("abc", {}), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
-  TempDir d("calib-digest");
+  ::dentmark::test::TempDir d("calib-digest");
   touch(d.path() / "a.png", "one");
   touch(d.path() / "b.png", "two");
   const std::string base = inputs_sha256("s", {d.path() / "a.png", d.path() / "b.png"});

@@ -9,10 +9,10 @@
 #include <opencv2/core.hpp>
 #include <random>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/robot_calibration_file.h"
 #include "dentmark/firmware/station/station_calibration.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -146,7 +146,7 @@ class RobotFiles : public ::testing::Test {
     fs << "]";
     return p;
   }
-  TempDir dir_{"calib-robot"};
+  ::dentmark::test::TempDir dir_{"calib-robot"};
 };
 
 TEST_F(RobotFiles, SamplesRoundTripAndResultLoads) {

@@ -13,11 +13,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/scanner_calibration.h"
 #include "dentmark/firmware/station/station_calibration.h"
 #include "stereo_renderer.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -132,7 +132,7 @@ void write_captures(const SecondScene& s, const std::filesystem::path& dir, int 
 
 TEST(ScannerCalibration, SecondGeneratorRecoversTheTruth) {
   const SecondScene s;
-  TempDir tmp("scanner");
+  ::dentmark::test::TempDir tmp("scanner");
   write_captures(s, tmp.path(), 3);
   const ScannerCalibrationRun run = calibrate_scanner_captures(tmp.path(), s.target, stereo_of(s), 0.001);
   ASSERT_EQ(run.captures.size(), 3u);
@@ -176,7 +176,7 @@ TEST(ScannerCalibration, SecondGeneratorRecoversTheTruth) {
 
 TEST(ScannerCalibration, TooFewSpheresInTheScanIsNamed) {
   SecondScene s;
-  TempDir tmp("scanner-few");
+  ::dentmark::test::TempDir tmp("scanner-few");
   // The scan shows only two of the spheres (the others moved out of its reach).
   SecondScene scanned = s;
   scanned.target.spheres_board.resize(2);
@@ -191,7 +191,7 @@ TEST(ScannerCalibration, TooFewSpheresInTheScanIsNamed) {
 }
 
 TEST(ScannerCalibration, AmbiguousOrBadTargetsAreRefused) {
-  TempDir tmp("scanner-target");
+  ::dentmark::test::TempDir tmp("scanner-target");
   ScannerTarget t = SecondScene().target;
   // A rectangle of spheres: its pairwise distances repeat.
   t.spheres_board = {{0, 0, 0.04}, {0.5, 0, 0.04}, {0.5, 0.3, 0.04}, {0, 0.3, 0.04}};
@@ -219,7 +219,7 @@ TEST(ScannerCalibration, AmbiguousOrBadTargetsAreRefused) {
 }
 
 TEST(ScannerCalibration, CapturesNeedAScanAndAPairEach) {
-  TempDir tmp("scanner-files");
+  ::dentmark::test::TempDir tmp("scanner-files");
   cv::Mat img(8, 8, CV_8U, cv::Scalar(0));
   cv::imwrite((tmp.path() / "left1.png").string(), img);
   cv::imwrite((tmp.path() / "right1.png").string(), img);

@@ -7,9 +7,9 @@
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 #include "opencv_sample_data.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -46,7 +46,7 @@ class RealPairs : public ::testing::Test {
     if (!problem.empty()) FAIL() << problem;
     test::copy_opencv_pairs(dir_.path());
   }
-  TempDir dir_{"calib-real"};
+  ::dentmark::test::TempDir dir_{"calib-real"};
 };
 
 TEST_F(RealPairs, NoWorseThanOpenCvStereoCalibSample) {

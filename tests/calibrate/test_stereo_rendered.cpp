@@ -14,9 +14,9 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "../support/temp_dir.h"
 #include "dentmark/firmware/calibrate/stereo_from_images.h"
 #include "stereo_renderer.h"
-#include "temp_dir.h"
 
 namespace dentmark::calibrate {
 namespace {
@@ -189,7 +189,7 @@ void expect_recovers_truth(const StereoCalibrationRun& run, const Truth& truth, 
 }
 
 TEST(RenderedStereo, ChessboardRecoversKnownKRT) {
-  TempDir dir("calib-render");
+  ::dentmark::test::TempDir dir("calib-render");
   const TargetSpec target = parse_target("chessboard:9x6", 0.025, 0.0, "");
   const Texture tex = test::chessboard_texture(9, 6, 0.025);
   // The board's outer edge (one square outside the inner corners) must stay in view.
@@ -202,7 +202,7 @@ TEST(RenderedStereo, ChessboardRecoversKnownKRT) {
 }
 
 TEST(RenderedStereo, CharucoRecoversKnownKRT) {
-  TempDir dir("calib-render-charuco");
+  ::dentmark::test::TempDir dir("calib-render-charuco");
   const TargetSpec target = parse_target("charuco:8x6", 0.03, 0.022, "DICT_5X5_100");
   const int px = 64;
   const cv::Ptr<cv::aruco::CharucoBoard> board = cv::aruco::CharucoBoard::create(
