@@ -90,6 +90,41 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
                          std::unique_ptr<const LinearOctree> tree_ptr, const Charts& charts, int facing,
                          const DetectConfig& cfg, Detection out);
 
+// The map pixels of the octree's feature groups (eq. 3-4 candidates).
+std::vector<long> pixels_of_groups(const LinearOctree& tree,
+                                   const std::vector<std::vector<std::uint32_t>>& groups,
+                                   const HeightMap& map) {
+  std::vector<long> pixels;
+  for (const auto& g : groups)
+    for (auto l : g) {
+      const Eigen::Vector3d q = map.to_map(tree.leaves()[l].centroid.cast<double>());
+      if (const long k = map.pixel_of(q.x(), q.y()); k >= 0) pixels.push_back(k);
+    }
+  return pixels;
+}
+
+// The seen pixels off the border zone.
+cv::Mat interior_of(const HeightMap& map, const cv::Mat& edge_zone) {
+  cv::Mat interior(map.rows, map.cols, CV_8U);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+    interior.data[k] = map.weight[static_cast<std::size_t>(k)] > 0.0f && !edge_zone.data[k] ? 255 : 0;
+  return interior;
+}
+
+// Design features by shape (and the fold lines), and the pieces next to them; those that
+// touch a border apart (design_rules.h: a rolled edge's band has no shoulders).
+cv::Mat near_design_zone(const std::vector<Candidate>& comps, const cv::Mat& fold_px,
+                         const cv::Mat& edge_zone, const HeightMap& map, const DetectConfig& cfg) {
+  cv::Mat design(map.rows, map.cols, CV_8U, cv::Scalar(0)),
+      border_design(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  for (const Candidate& comp : comps)
+    if (!comp.pixels.empty() && design_reason(comp.shape, cfg))
+      for (auto k : comp.pixels) (comp.shape.touches_edge ? border_design : design).data[k] = 255;
+  design |= fold_px;  // a fold line is a design feature wherever it shows, even in pieces
+  return design_surroundings(design, border_design, edge_zone, map.pixel);
+}
+
 // The holes' pixels and what was seen through them, widened by 2 mm: their rim is theirs,
 // not a dent's.
 cv::Mat hole_zone_of(const std::vector<HoleRegion>& holes, int rows, int cols, double h) {
@@ -352,22 +387,14 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const HeightMap& map = out.map;
   const int rows = map.rows, cols = map.cols;
   // The feature groups' pixels (eq. 3-4 candidates); the leaves are not needed after this.
-  std::vector<long> group_pixels;
-  for (const auto& g : groups)
-    for (auto l : g) {
-      const Eigen::Vector3d q = map.to_map(tree.leaves()[l].centroid.cast<double>());
-      if (const long k = map.pixel_of(q.x(), q.y()); k >= 0) group_pixels.push_back(k);
-    }
+  const std::vector<long> group_pixels = pixels_of_groups(tree, groups, map);
   // Working memory: the octree's leaves and the records of its build; the map's arrays and
   // deviation images; the map's build (per leaf: pixel; per pixel: front).
   st.working_bytes =
       tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 4;
   tree_ptr.reset();
   const cv::Mat edge_zone = border_zone(map);
-  cv::Mat interior(rows, cols, CV_8U);  // seen, off the border zone
-#pragma omp parallel for schedule(static)
-  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
-    interior.data[k] = map.weight[static_cast<std::size_t>(k)] > 0.0f && !edge_zone.data[k] ? 255 : 0;
+  const cv::Mat interior = interior_of(map, edge_zone);
   const std::vector<int> scales = detection_scales(h);
   ReferenceSurface reference(map, cfg.reference_window);
   reference.look_for_folds(chart_w.squaredNorm() == 0.0);  // not on a chart (reference_surface.h)
@@ -407,14 +434,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
                        [&] { out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size()); });
   const double sigma3 = std::max(deviation.scale_sigma.front(), 1e-9);
 
-  // Design features by shape, and the pieces next to them; those that touch a border
-  // apart (design_rules.h: a rolled edge's band has no shoulders).
-  cv::Mat design(rows, cols, CV_8U, cv::Scalar(0)), border_design(rows, cols, CV_8U, cv::Scalar(0));
-  for (const Candidate& comp : comps)
-    if (!comp.pixels.empty() && design_reason(comp.shape, cfg))
-      for (auto k : comp.pixels) (comp.shape.touches_edge ? border_design : design).data[k] = 255;
-  design |= fold_px;  // a fold line is a design feature wherever it shows, even in pieces
-  const cv::Mat near_design = design_surroundings(design, border_design, edge_zone, h);
+  const cv::Mat near_design = near_design_zone(comps, fold_px, edge_zone, map, cfg);
   const auto reason_for_design = [&](const Candidate& comp) -> const char* {
     if (const char* why = design_reason(comp.shape, cfg)) return why;
     return next_to_design(comp.pixels, near_design, dev) ? "next to a design feature" : nullptr;
