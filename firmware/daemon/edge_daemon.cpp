@@ -99,11 +99,13 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
   so.max_clients = options_.max_clients;
   so.clock = options_.unix_time;
   link::Handler handler = station::link_handler(*station_, clock_);
-  if (options_.before_request)
-    handler = [inner = std::move(handler), hook = options_.before_request](const protocol::Decoded& d,
-                                                                           std::span<const std::uint8_t> f) {
-      hook(d);
-      return inner(d, f);
+  if (options_.before_request || options_.after_request)
+    handler = [inner = std::move(handler), before = options_.before_request, after = options_.after_request](
+                  const protocol::Decoded& d, std::span<const std::uint8_t> f) {
+      if (before) before(d);
+      auto reply = inner(d, f);
+      if (after) after(d);
+      return reply;
     };
   server_ = std::make_unique<link::LinkServer>(so, std::move(handler));
 }

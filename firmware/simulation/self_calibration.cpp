@@ -132,7 +132,7 @@ void calibrate_robot_step(const Workcell& cell, board::BoardConfig board,
       "chessboard:" + std::to_string(scene.target.cols) + "x" + std::to_string(scene.target.rows),
       scene.target.square, 0.0, "");
   target.T_tool_target = scene.T_tool_target;  // the mount's drawing
-  const sim::RobotSimulator* truth = robot_sim.get();
+  sim::RobotSimulator* truth = robot_sim.get();
   const auto devices = open_calibration_devices(board, scene, clock, [truth] { return truth->true_pose(); });
   calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, target);
   rig.connect();

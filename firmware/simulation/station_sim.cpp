@@ -33,6 +33,13 @@ namespace {
 // stamps (scan_time, send_time) and the daemon's reports are on one line.
 constexpr double kEpoch = 1.75e9;
 
+// Real-time budgets of the twin's host side: on the lock-step clock a job takes as long
+// as its computation, so these only catch a twin that hangs.
+constexpr double kRealReplyTimeout = 30.0;  // s for the edge's Ack
+constexpr double kRealJobTimeout = 1800.0;  // s for the whole job
+constexpr double kRealSilence = 120.0;      // s without a message from the edge
+constexpr double kJobEndGrace = 60.0;       // simulated s from the last report to the job's end
+
 // A frame's own noise seed. cv::RNG's first draws from nearby seeds are nearly the
 // same, which would turn sensor noise into a fixed pattern the door slides over (and
 // the tracker sticks to): the seeds are spread by SplitMix64 first.
@@ -169,23 +176,21 @@ void score(ScenarioResult& result, const Workcell& cell, const protocol::DefectL
 
 // The host inside the twin: the code of `dentmark send --wait` (JobSession). The scan
 // was taken at t = 0; the list goes out while time stands still, then the line runs.
-protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, clock::SimClock& clock,
-                              const std::function<void()>& start_time, const Workcell& cell,
-                              const SimulationOptions& sim) {
-  const double slow = std::max(1.0, sim.clock_rate);
+protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, clock::LockstepClock& clock,
+                              const std::function<void()>& start_time) {
   list.scan_time = kEpoch;
   protocol::ClientOptions co;
   co.host = "127.0.0.1";
   co.port = port;
   co.clock = [&clock] { return kEpoch + clock.now(); };
-  co.reply_timeout = std::chrono::milliseconds(static_cast<long>(5000 * slow));
+  co.reply_timeout = std::chrono::milliseconds(static_cast<long>(1000 * kRealReplyTimeout));
   protocol::JobSession host(co);
   try {
     host.send(list);
     start_time();
     protocol::JobWaitOptions wo;
-    wo.timeout = (cell.t_mark + 120.0) / sim.clock_rate + 60.0;
-    wo.silence = 5.0 * slow;
+    wo.timeout = kRealJobTimeout;
+    wo.silence = kRealSilence;
     return host.wait(list, wo);
   } catch (const std::exception& e) {
     throw std::runtime_error(std::string("the twin's host side: ") + e.what());
@@ -196,8 +201,7 @@ protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, cl
 // the twin waits for the list, then for the job to end, and reads the same outcomes
 // from the station.
 protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDaemon& edge,
-                                const std::atomic<bool>& list_arrived, const SimulationOptions& sim,
-                                const Workcell& cell) {
+                                const std::atomic<bool>& list_arrived, const SimulationOptions& sim) {
   log::info("twin: waiting for the host's list (job " + std::to_string(list.job_id) +
             "): dentmark send FILE --to 127.0.0.1:" + std::to_string(edge.port()) + " --wait");
   const auto now = [] { return std::chrono::steady_clock::now(); };
@@ -205,8 +209,7 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
   while (!list_arrived && now() < list_deadline) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   if (!list_arrived)
     throw std::runtime_error("no defect list came within " + std::to_string(sim.serve_timeout) + " s");
-  const auto job_deadline =
-      now() + std::chrono::duration<double>((cell.t_mark + 120.0) / sim.clock_rate + 60.0);
+  const auto job_deadline = now() + std::chrono::duration<double>(kRealJobTimeout);
   while (now() < job_deadline) {
     const auto reports = edge.station().reports(list.job_id);
     if (reports && reports->marks.size() >= list.defects.size() && edge.station().wait_idle(0.0)) {
@@ -218,6 +221,38 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   throw std::runtime_error("job " + std::to_string(list.job_id) + " did not end in time");
+}
+
+// From the records of the valve line, the robot's tip and the reports: how long after
+// the first fault the station was safe (ScenarioResult).
+void time_to_safe(ScenarioResult& result, double t_fault, const std::vector<hal::EdgeRecord>& edges,
+                  const std::string& valve, const std::vector<sim::TipSample>& tip) {
+  result.fault_time = t_fault;
+  bool open = false;
+  double closed = t_fault;
+  for (const hal::EdgeRecord& e : edges) {
+    if (e.line != valve) continue;
+    if (e.time <= t_fault) {
+      open = e.active;
+      continue;
+    }
+    if (open && !e.active) {
+      closed = e.time;
+      break;
+    }
+    open = e.active;
+  }
+  result.valve_closed_after = closed - t_fault;
+  // The first sample at rest after the last one in motion (the simulator records the
+  // instant a move or a braking ends).
+  double still = t_fault;
+  for (std::size_t i = 0; i < tip.size(); ++i)
+    if (tip[i].time >= t_fault && tip[i].speed > 0.0)
+      still = i + 1 < tip.size() ? tip[i + 1].time : tip[i].time;
+  result.robot_still_after = still - t_fault;
+  double reported = t_fault;
+  for (const protocol::Mark& m : result.report.marks) reported = std::max(reported, m.time);
+  result.reported_after = reported - t_fault;
 }
 
 }  // namespace
@@ -264,8 +299,7 @@ Fault parse_fault(const std::string& text) {
 namespace {
 
 // The twin's board: the simulation board file with the scenario's cameras and the
-// workcell's limits. Socket timeouts are real-time budgets of the link; at a fast
-// clock they are scaled to stay that long.
+// workcell's limits.
 board::BoardConfig twin_board(const SimulationOptions& sim, const ScenarioOptions& scenario,
                               const Workcell& cell) {
   board::BoardConfig board = board::load_board_config(twin_board_file(sim));
@@ -273,14 +307,13 @@ board::BoardConfig twin_board(const SimulationOptions& sim, const ScenarioOption
   board.camera.height = scenario.height;
   board.limits.workspace_min = cell.workspace_min;
   board.limits.workspace_max = cell.workspace_max;
-  board.modbus.timeout *= std::max(1.0, sim.clock_rate);
   return board;
 }
 
 // The robot: the workcell's limits and home, a fixed absolute accuracy error drawn from
 // the scenario's seed, and its repeatability.
-sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const SimulationOptions& sim,
-                                 const Workcell& cell, const board::BoardConfig& board) {
+sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Workcell& cell,
+                                 const board::BoardConfig& board) {
   std::mt19937_64 rng(scenario.seed);
   std::normal_distribution<double> unit(0.0, 1.0);
   sim::RobotSimConfig c;
@@ -293,7 +326,7 @@ sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Simulati
       Eigen::Vector3d::Zero(), scenario.robot_accuracy * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
   c.repeatability = scenario.robot_repeatability;
   c.seed = static_cast<std::uint32_t>(scenario.seed);
-  c.heartbeat_timeout = 0.5 * std::max(1.0, sim.clock_rate);
+  c.heartbeat_timeout = 0.5;
   return c;
 }
 
@@ -302,7 +335,7 @@ sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Simulati
 class DoorCameras {
  public:
   DoorCameras(const Workcell& cell, const ScenarioOptions& scenario, const SimulationOptions& sim,
-              const sim::RobotSimulator& robot, clock::Clock& clock)
+              sim::RobotSimulator& robot, clock::Clock& clock)
       : cell_(cell),
         renderer_(cell.rig, cell.door),
         scenario_(scenario),
@@ -345,24 +378,35 @@ class DoorCameras {
   const stereo::StereoRenderer renderer_;
   const ScenarioOptions& scenario_;
   const SimulationOptions& sim_;
-  const sim::RobotSimulator& robot_;
+  sim::RobotSimulator& robot_;
   clock::Clock& clock_;
 };
+
+// Ends the line's wait when the scenario is over.
+struct LineStop {
+  std::mutex mutex;
+  std::condition_variable changed;
+  bool done = false;
+};
+
+// Waits on the twin's clock until t; false when the scenario ended first.
+bool line_wait_until(clock::Clock& clock, LineStop& stop, double t) {
+  std::unique_lock lock(stop.mutex);
+  while (!stop.done && clock.now() < t) clock.wait_until(lock, stop.changed, t);
+  return !stop.done;
+}
 
 // The line around the station: once time runs, the panel reaches the marking place
 // (part-present) at t_mark, and the scenario's faults come after.
 void run_line(const SimulationOptions& sim, const Workcell& cell, const board::BoardConfig& board,
-              clock::SimClock& clock, const std::atomic<bool>& held, const std::atomic<bool>& done,
-              hal::SimGpio& gpio, sim::RobotSimulator& robot, DoorCameras& cameras) {
+              clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::RobotSimulator& robot,
+              DoorCameras& cameras) {
   std::vector<Fault> faults = sim.faults;
   std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
-  while (!done && held) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  while (!done && clock.now() < cell.t_mark) clock.sleep_for(0.01);
-  if (!done) gpio.drive(board.gpio.part_present.name, true);
+  if (!line_wait_until(clock, stop, cell.t_mark)) return;
+  gpio.drive(board.gpio.part_present.name, true);
   for (const Fault& f : faults) {
-    const double at = cell.t_mark + f.after;
-    while (!done && clock.now() < at) clock.sleep_for(0.005);
-    if (done) return;
+    if (!line_wait_until(clock, stop, cell.t_mark + f.after)) return;
     log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
               " s");
     switch (f.kind) {
@@ -397,21 +441,20 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   protocol::DefectList list = sent_list;
   if (list.panel_id.empty()) list.panel_id = "twin-door";
   board::BoardConfig board = twin_board(sim, scenario, cell);
-  const double slow = std::max(1.0, sim.clock_rate);
 
   // Time stands still from the start while the station is set up and the list goes out:
   // the scan is at t = 0 exactly, the cameras take their first frame then, and the list
   // arrives then (a fast clock would otherwise turn milliseconds of setup and loopback
   // latency into millimetres of line travel).
-  clock::SimClock clock(sim.clock_rate, 0.0, /*paused=*/true);
+  clock::LockstepClock clock(0.0);  // held until the list is out
   std::atomic<bool> held{true};
   const auto start_time = [&] {
     if (held.exchange(false)) clock.resume();
   };
   std::optional<SelfCalibrationResult> self;
   if (!sim.self_calibration_cache.empty())
-    self = self_calibrate(cell, board, robot_config(scenario, sim, cell, board), sim.self_calibration_cache);
-  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_config(scenario, sim, cell, board), clock);
+    self = self_calibrate(cell, board, robot_config(scenario, cell, board), sim.self_calibration_cache);
+  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_config(scenario, cell, board), clock);
   board.modbus.host = "127.0.0.1";
   board.modbus.port = robot_sim->port();
   DoorCameras cameras(cell, scenario, sim, *robot_sim, clock);
@@ -433,15 +476,24 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       const double age = req.header.send_time - l->scan_time;
       log::info("twin: the host's scan is " + std::to_string(age) + " s old; the line ran meanwhile");
       clock.advance(std::max(0.0, age));
-      start_time();
+    };
+  // Time runs once the list is in (its arrival stamped at the scan's age, not later).
+  if (sim.serve)
+    d.after_request = [&](const protocol::Decoded& req) {
+      if (std::holds_alternative<protocol::DefectList>(req.message) && list_arrived) start_time();
     };
   d.hal.render = [&cameras](double t) { return cameras.render(stereo::Eye::kLeft, t); };
   d.hal.render_right = [&cameras](double t) { return cameras.render(stereo::Eye::kRight, t); };
   d.hal.sim_frame_period = 1.0 / scenario.fps;
   d.station.job.planner.chain.standoff = scenario.standoff;
   d.station.firmware_version = "twin";
-  d.tracking.grab_timeout = 1.0 * slow;
-  d.watchdog_timeout = slow;
+  // Time stops when the job ends: the run's figures do not depend on how long the host
+  // side takes to collect the last reports.
+  std::atomic<bool> ended_held{false};
+  d.station.on_job_end = [&](std::uint64_t) {
+    if (!ended_held.exchange(true)) clock.pause();
+  };
+  d.tracking.grab_timeout = 1.0;
   d.unix_time = [&clock] { return kEpoch + clock.now(); };
   if (sim.truth_motion)
     d.tracking_override = [&](const station::StationCalibration&) {
@@ -450,8 +502,9 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   daemon::EdgeDaemon edge(std::move(d), clock);
   edge.start();
   auto& gpio = dynamic_cast<hal::SimGpio&>(edge.gpio());
-  std::atomic<bool> done{false};
-  std::thread line([&] { run_line(sim, cell, board, clock, held, done, gpio, *robot_sim, cameras); });
+  LineStop line_stop;
+  clock::ParticipantThread line(
+      clock, [&] { run_line(sim, cell, board, clock, line_stop, gpio, *robot_sim, cameras); });
 
   ScenarioResult result;
   result.options = scenario;
@@ -475,22 +528,31 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   result.defects_sent = static_cast<int>(list.defects.size());
   const auto finish_run = [&] {
     start_time();
+    // The host may have every report before the job has ended (and held the clock).
+    edge.station().wait_idle(kJobEndGrace);
     result.sim_seconds = clock.now();
-    done = true;
-    line.join();
     if (edge.cameras()) {
       result.frames_tracked = edge.cameras()->pairs_captured();
-      result.frames_offered = static_cast<long>(result.sim_seconds * scenario.fps);
+      // The cameras' frames from t = 0 to the end, both included.
+      result.frames_offered = static_cast<long>(std::floor(result.sim_seconds * scenario.fps + 1e-6)) + 1;
     }
+    if (ended_held) clock.resume();  // time runs again for the shutdown
+    {
+      std::lock_guard lock(line_stop.mutex);
+      line_stop.done = true;
+    }
+    clock.notify_all(line_stop.changed);
+    line.join();
     edge.stop();
     robot_sim->stop();
   };
+
   protocol::JobOutcome outcome;
   try {
     if (sim.serve)
-      outcome = serve_host(list, edge, list_arrived, sim, cell);
+      outcome = serve_host(list, edge, list_arrived, sim);
     else
-      outcome = run_host(list, edge.port(), clock, start_time, cell, sim);
+      outcome = run_host(list, edge.port(), clock, start_time);
   } catch (const std::exception&) {
     finish_run();
     throw;
@@ -507,6 +569,12 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
       result.report.marks.push_back(m);
     }
   score(result, cell, list, truth, robot_sim->sprays(), scenario.standoff);
+  if (!sim.faults.empty()) {
+    double first = sim.faults.front().after;
+    for (const Fault& f : sim.faults) first = std::min(first, f.after);
+    time_to_safe(result, cell.t_mark + first, gpio.edges(), board.gpio.sprayer_valve.name,
+                 robot_sim->trajectory());
+  }
   result.real_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - real_start).count();
   return result;
 }

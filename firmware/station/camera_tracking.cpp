@@ -33,7 +33,7 @@ CameraTracking::~CameraTracking() {
 void CameraTracking::start() {
   stereo_.start();
   stop_ = false;
-  thread_ = std::thread([this] { capture_loop(); });
+  thread_ = clock::ParticipantThread(clock_, [this] { capture_loop(); });
 }
 
 void CameraTracking::stop() {
@@ -45,7 +45,7 @@ void CameraTracking::stop() {
     if (auto f = w.lock()) {
       std::lock_guard fl(f->mutex);
       f->closed = true;
-      f->ready.notify_all();
+      clock_.notify_all(f->ready);
     }
 }
 
@@ -77,7 +77,7 @@ void CameraTracking::deliver(const StereoFrame& f) {
   else
     kept_.back() = f;  // the newest pair is always kept
   while (!kept_.empty() && kept_.front().t < f.t - config_.history) kept_.pop_front();
-  first_pair_.notify_all();
+  clock_.notify_all(first_pair_);
   feeds_.erase(std::remove_if(feeds_.begin(), feeds_.end(), [](const auto& w) { return w.expired(); }),
                feeds_.end());
   for (auto& w : feeds_) {
@@ -86,7 +86,7 @@ void CameraTracking::deliver(const StereoFrame& f) {
     if (f.t <= feed->last_t) continue;
     feed->live = f;
     feed->last_t = f.t;
-    feed->ready.notify_all();
+    clock_.notify_all(feed->ready);
   }
 }
 
@@ -117,11 +117,9 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
   {
     std::unique_lock lock(mutex_);
     // A list that comes in with its scan needs the pair the cameras are taking now.
-    const auto wait_until =
-        std::chrono::steady_clock::now() +
-        std::chrono::duration<double>(clock_.to_real(config_.max_scan_gap) + config_.grab_timeout);
-    first_pair_.wait_until(lock, wait_until,
-                           [&] { return stop_ || (!kept_.empty() && kept_.back().t >= t_scan); });
+    const double deadline = clock_.now() + config_.max_scan_gap + config_.grab_timeout;
+    while (!(stop_ || (!kept_.empty() && kept_.back().t >= t_scan)) && clock_.now() < deadline)
+      clock_.wait_until(lock, first_pair_, deadline);
     const auto nearest = std::min_element(kept_.begin(), kept_.end(), [&](const auto& a, const auto& b) {
       return std::abs(a.t - t_scan) < std::abs(b.t - t_scan);
     });
@@ -147,7 +145,8 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
 
   bool served_first = false;
   const double timeout = config_.grab_timeout * 2.0;
-  StereoFrameSource frames = [feed, first, served_first, timeout]() mutable -> std::optional<StereoFrame> {
+  StereoFrameSource frames = [feed, first, served_first, timeout,
+                              &clock = clock_]() mutable -> std::optional<StereoFrame> {
     if (!served_first) {
       served_first = true;
       return first;
@@ -158,9 +157,10 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
       feed->catch_up.pop_front();
       return f;
     }
-    if (!feed->ready.wait_for(lock, std::chrono::duration<double>(timeout),
-                              [&] { return feed->closed || feed->live.has_value(); }) ||
-        !feed->live)
+    const double deadline = clock.now() + timeout;
+    while (!feed->closed && !feed->live && clock.now() < deadline)
+      clock.wait_until(lock, feed->ready, deadline);
+    if (!feed->live)
       return std::nullopt;  // cameras lost or stopped: the tracker ends, the job sees tracking lost
     StereoFrame f = std::move(*feed->live);
     feed->live.reset();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 
 #include "dentmark/common/log.h"
 
@@ -17,6 +18,8 @@ struct Station::JobRecord {
 };
 
 namespace {
+
+constexpr double kForever = std::numeric_limits<double>::infinity();
 
 std::string job_name(std::uint64_t id) {
   return "job " + std::to_string(id);
@@ -65,7 +68,7 @@ void Station::start() {
     stopping_ = false;
   }
   dev_.safety.valve_off();
-  thread_ = std::thread([this] { job_loop(); });
+  thread_ = clock::ParticipantThread(dev_.clock, [this] { job_loop(); });
 }
 
 void Station::stop() {
@@ -74,7 +77,7 @@ void Station::stop() {
     stopping_ = true;
     if (runner_) runner_->cancel();
   }
-  changed_.notify_all();
+  dev_.clock.notify_all(changed_);
   if (thread_.joinable()) thread_.join();
   dev_.safety.valve_off();
 }
@@ -138,7 +141,7 @@ protocol::Message Station::accept(const protocol::Decoded& d, std::span<const st
   current_job_ = list->job_id;
   state_ = EdgeState::kJobReceived;
   lock.unlock();
-  changed_.notify_all();
+  dev_.clock.notify_all(changed_);
   log::info(job_name(list->job_id) + " panel '" + list->panel_id +
             "': " + std::to_string(list->defects.size()) + " defects accepted; scan " +
             std::to_string(std::max(0.0, age)) + " s before sending" +
@@ -183,9 +186,8 @@ void Station::follow(std::uint64_t job_id, std::size_t already_sent, const PushM
       const auto it = jobs_.find(job_id);
       if (it == jobs_.end()) return;
       const JobRecord& job = *it->second;
-      const double wait = std::max(0.0, next_beat - dev_.clock.now());
-      changed_.wait_for(lock, std::chrono::duration<double>(std::min(dev_.clock.to_real(wait), 0.25)),
-                        [&] { return stopping_ || job.marks.size() > sent || job.end.has_value(); });
+      if (!(stopping_ || job.marks.size() > sent || job.end.has_value()))
+        dev_.clock.wait_until(lock, changed_, next_beat);
       if (stopping_) return;
       fresh.marks.assign(job.marks.begin() + static_cast<std::ptrdiff_t>(std::min(sent, job.marks.size())),
                          job.marks.end());
@@ -221,10 +223,12 @@ void Station::record(std::uint64_t job_id, const protocol::Mark& mark) {
     std::lock_guard lock(mutex_);
     if (const auto it = jobs_.find(job_id); it != jobs_.end()) it->second->marks.push_back(mark);
   }
-  changed_.notify_all();
+  dev_.clock.notify_all(changed_);
 }
 
 void Station::finish(std::uint64_t job_id, EdgeState end, std::uint32_t faults) {
+  // Before the end is visible: whoever sees the job ended sees the hook's effect too.
+  if (config_.on_job_end) config_.on_job_end(job_id);
   {
     std::lock_guard lock(mutex_);
     if (const auto it = jobs_.find(job_id); it != jobs_.end()) it->second->end = end;
@@ -232,7 +236,7 @@ void Station::finish(std::uint64_t job_id, EdgeState end, std::uint32_t faults) 
     job_faults_ = faults;
     busy_ = false;
   }
-  changed_.notify_all();
+  dev_.clock.notify_all(changed_);
 }
 
 void Station::job_loop() {
@@ -240,7 +244,7 @@ void Station::job_loop() {
     Pending job;
     {
       std::unique_lock lock(mutex_);
-      changed_.wait(lock, [&] { return stopping_ || pending_.has_value(); });
+      while (!stopping_ && !pending_) dev_.clock.wait_until(lock, changed_, kForever);
       if (stopping_ && !pending_) return;
       job = std::move(*pending_);
       pending_.reset();

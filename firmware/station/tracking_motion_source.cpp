@@ -27,7 +27,8 @@ TrackingMotionSource::TrackingMotionSource(track::StereoCalibration calibration,
   const auto first = source_();
   if (!first) throw track::TrackError("tracking: the camera gave no first frame");
   publish(tracker_.start(first->left, first->right, first->t, seeds_right, first->index));
-  thread_ = std::thread([this] { run(); });
+  thread_ =
+      clock::ParticipantThread(clock_ != nullptr ? *clock_ : clock::monotonic_clock(), [this] { run(); });
 }
 
 TrackingMotionSource::~TrackingMotionSource() {

@@ -159,18 +159,23 @@ std::vector<SprayRecord> RobotSimulator::sprays() const {
   return sprays_;
 }
 
-Transform RobotSimulator::nominal_pose() const {
+// The readers step the robot to the clock's now first: what they see does not depend
+// on when the serve loop last woke.
+Transform RobotSimulator::nominal_pose() {
   std::lock_guard<std::mutex> lock(mutex_);
+  step(clock_.now());
   return nominal_;
 }
 
-Transform RobotSimulator::true_pose() const {
+Transform RobotSimulator::true_pose() {
   std::lock_guard<std::mutex> lock(mutex_);
+  step(clock_.now());
   return true_from_nominal(nominal_, noise_);
 }
 
-rl::State RobotSimulator::state() const {
+rl::State RobotSimulator::state() {
   std::lock_guard<std::mutex> lock(mutex_);
+  step(clock_.now());
   return state_;
 }
 
@@ -258,9 +263,12 @@ void RobotSimulator::serve_request(int fd, const std::uint8_t* query, int length
   }
   if (delay > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(delay));
   const int function = query[modbus_get_header_length(ep.ctx)];
+  // The request's time: the client waits for the reply, so on a lock-step clock time
+  // stands still until then, but not after; the command takes effect at this time too.
+  double now = 0.0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double now = clock_.now();
+    now = clock_.now();
     step(now);
     publish_status(now);
   }
@@ -271,14 +279,13 @@ void RobotSimulator::serve_request(int fd, const std::uint8_t* query, int length
   }
   if (is_write(function)) {
     std::lock_guard<std::mutex> lock(mutex_);
-    on_command_block();
+    on_command_block(now);
   }
 }
 
 // Called with mutex_ held after a write to the command block.
-void RobotSimulator::on_command_block() {
+void RobotSimulator::on_command_block(double now) {
   const std::uint16_t* regs = endpoint_->map->tab_registers;
-  const double now = clock_.now();
   if (regs[rl::cmd::kHeartbeat] != heartbeat_) {
     heartbeat_ = regs[rl::cmd::kHeartbeat];
     heartbeat_time_ = now;
@@ -383,10 +390,12 @@ void RobotSimulator::step(double now) {
     }
     return;
   }
-  if ((state_ == rl::State::kMoving || state_ == rl::State::kSpraying) &&
-      now - heartbeat_time_ > config_.heartbeat_timeout) {
-    // The robot program's watchdog: the edge stopped talking, so stop and close the sprayer.
-    stop_motion(now, rl::fault::kHeartbeatLost, rl::State::kStopped);
+  const double watchdog_fires = heartbeat_time_ + config_.heartbeat_timeout;
+  if ((state_ == rl::State::kMoving || state_ == rl::State::kSpraying) && now > watchdog_fires) {
+    // The robot program's watchdog: the edge stopped talking, so stop and close the
+    // sprayer, from the instant the watchdog fired (not when this step happens to run).
+    stop_motion(watchdog_fires, rl::fault::kHeartbeatLost, rl::State::kStopped);
+    if (stopping_) step(now);
     return;
   }
   if (state_ == rl::State::kMoving) {

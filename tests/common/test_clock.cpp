@@ -1,8 +1,12 @@
 // The injected clock: real monotonic time and simulated time (manual and scaled).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <limits>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "dentmark/common/clock/clock.h"
 
@@ -88,4 +92,152 @@ TEST(SimClock, PausedTimeStandsStillAndResumeWakesSleepers) {
   EXPECT_TRUE(woke);
   EXPECT_GE(c.now(), t0 + 1.0);
   EXPECT_LT(c.now(), t0 + 30.0) << "the paused 60 ms did not count (6 s at x100)";
+}
+
+// ---- LockstepClock: discrete-event time for the twin ----
+
+using dentmark::clock::LockstepClock;
+
+namespace {
+
+// Three participants with their own periods, one handing work to another through a
+// condition variable; returns the log of who ran when.
+std::vector<std::pair<int, double>> lockstep_run(bool with_load) {
+  LockstepClock clock;
+  std::mutex m;
+  std::vector<std::pair<int, double>> log;
+  const auto note = [&](int who) {
+    std::lock_guard lock(m);
+    log.emplace_back(who, clock.now());
+  };
+  std::mutex feed_mutex;
+  std::condition_variable feed;
+  int queued = 0;
+  std::atomic<bool> stop{false};
+  std::atomic<bool> spin{with_load};
+  std::thread load([&] {
+    volatile double x = 0;
+    while (spin) x = x + 1.0;
+  });
+  std::vector<dentmark::clock::ParticipantThread> threads;
+  threads.emplace_back(clock, [&] {
+    for (int k = 1; k <= 20; ++k) {
+      clock.sleep_until(0.1 * k);
+      note(1);
+      std::lock_guard lock(feed_mutex);
+      ++queued;
+      clock.notify_all(feed);
+    }
+  });
+  threads.emplace_back(clock, [&] {
+    std::unique_lock lock(feed_mutex);
+    for (int served = 0; served < 20;) {
+      if (queued == 0) {
+        clock.wait_until(lock, feed, std::numeric_limits<double>::infinity());
+        continue;
+      }
+      --queued, ++served;
+      lock.unlock();
+      std::this_thread::sleep_for(std::chrono::microseconds(200));  // work: no time passes
+      note(2);
+      lock.lock();
+    }
+  });
+  threads.emplace_back(clock, [&] {
+    while (clock.now() < 2.0) {
+      clock.sleep_for(0.03);
+      note(3);
+    }
+  });
+  clock.resume();
+  for (auto& t : threads) t.join();
+  stop = true;
+  spin = false;
+  load.join();
+  return log;
+}
+
+}  // namespace
+
+TEST(LockstepClock, SameRunWhateverTheLoad) {
+  const auto quiet = lockstep_run(false);
+  ASSERT_EQ(std::count_if(quiet.begin(), quiet.end(), [](const auto& e) { return e.first == 2; }), 20);
+  for (int trial = 0; trial < 3; ++trial) EXPECT_EQ(lockstep_run(true), quiet) << "trial " << trial;
+}
+
+TEST(LockstepClock, AHandOffRunsBeforeTimeMovesOn) {
+  const auto log = lockstep_run(false);
+  // Every item the producer queues at t is served at that same t.
+  std::vector<double> produced, served;
+  for (const auto& [who, t] : log) {
+    if (who == 1) produced.push_back(t);
+    if (who == 2) served.push_back(t);
+  }
+  ASSERT_EQ(produced.size(), 20u);
+  EXPECT_EQ(served, produced);
+  // And events are in time order.
+  for (std::size_t i = 1; i < log.size(); ++i) EXPECT_LE(log[i - 1].second, log[i].second);
+}
+
+TEST(LockstepClock, TimeStandsStillWhileAParticipantWorksAndJumpsOtherwise) {
+  LockstepClock clock(5.0);
+  std::atomic<double> seen_after_work{0.0};
+  dentmark::clock::ParticipantThread worker(clock, [&] {
+    const double t0 = clock.now();
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    seen_after_work = clock.now() - t0;
+    clock.sleep_until(1005.0);  // a thousand simulated seconds
+  });
+  std::atomic<bool> woke{false};
+  std::thread bystander([&] {  // not a participant: woken as time passes
+    clock.sleep_until(500.0);
+    woke = true;
+  });
+  const auto r0 = std::chrono::steady_clock::now();
+  clock.resume();
+  worker.join();
+  bystander.join();
+  EXPECT_EQ(seen_after_work.load(), 0.0);
+  EXPECT_TRUE(woke.load());
+  EXPECT_EQ(clock.now(), 1005.0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count(), 5.0);
+}
+
+TEST(LockstepClock, TiesGoToTheFirstToWait) {
+  LockstepClock clock;
+  std::mutex m;
+  std::vector<int> order;
+  std::vector<dentmark::clock::ParticipantThread> ts;
+  for (int i = 0; i < 4; ++i) {
+    ts.emplace_back(clock, [&, i] {
+      // Each registers in turn: i waits i ms of real time before sleeping.
+      std::this_thread::sleep_for(std::chrono::milliseconds(5 * i));
+      clock.sleep_until(1.0);
+      std::lock_guard lock(m);
+      order.push_back(i);
+    });
+  }
+  clock.resume();
+  for (auto& t : ts) t.join();
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 3}));
+}
+
+TEST(LockstepClock, PauseHoldsTimeAndAdvanceJumps) {
+  LockstepClock clock(0.0);  // starts paused
+  std::atomic<bool> woke{false};
+  dentmark::clock::ParticipantThread p(clock, [&] {
+    clock.sleep_until(2.0);
+    woke = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_FALSE(woke.load());
+  EXPECT_EQ(clock.now(), 0.0);
+  clock.advance(1.5);
+  EXPECT_EQ(clock.now(), 1.5);
+  EXPECT_FALSE(woke.load());
+  clock.resume();
+  p.join();
+  EXPECT_TRUE(woke.load());
+  EXPECT_EQ(clock.now(), 2.0);
+  EXPECT_THROW(clock.advance(-1.0), std::invalid_argument);
 }

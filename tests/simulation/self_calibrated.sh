@@ -11,7 +11,7 @@ set -eu
 edge=$1 cache=$2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$edge" simulate --scenario B0 --rate 4 --self-calibrate --calibration-cache "$cache" --json "$tmp/r.json" \
+"$edge" simulate --scenario B0 --self-calibrate --calibration-cache "$cache" --json "$tmp/r.json" \
   >"$tmp/out.txt" 2>&1 || { cat "$tmp/out.txt"; echo "FAIL: simulate exited $?"; exit 1; }
 grep -v ' INFO ' "$tmp/out.txt"
 python3 - "$tmp/r.json" <<'PY'

@@ -8,7 +8,7 @@ dentmark="$1" edge="$2" work="$3"
 rm -rf "$work" && mkdir -p "$work"
 "$dentmark" synth scan --out "$work/door.ply" --truth "$work/truth.json" --seed 11 --defects 4 >/dev/null
 "$dentmark" detect "$work/door.ply" --out "$work/defects.dml" --panel door-FL --job 501 >/dev/null
-"$edge" simulate --serve --port 0 --scenario A0 --truth-motion --rate 4 --defects "$work/defects.dml" \
+"$edge" simulate --serve --port 0 --scenario A0 --truth-motion --defects "$work/defects.dml" \
   --truth "$work/truth.json" --json "$work/station.json" >"$work/edge.log" 2>&1 &
 edge_pid=$!
 trap 'kill "$edge_pid" 2>/dev/null || true' EXIT

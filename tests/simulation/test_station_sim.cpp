@@ -33,7 +33,6 @@ TEST(StationSim, MarksMovingPanelWithinTwoMillimetresGivenTrueMotion) {
     s.position = pos;
     s.yaw = yaw_deg * std::numbers::pi / 180.0;
     SimulationOptions sim;
-    sim.clock_rate = 4.0;  // loopback latency counts x rate: keep it small on a loaded machine
     sim.truth_motion = true;
     const ScenarioResult r = run_scenario(s, sim, d.list, d.truth);
     EXPECT_EQ(r.marked, 4) << pos << yaw_deg;
@@ -61,7 +60,6 @@ TEST(StationSim, ErrorsReflectACalibrationOffset) {
   s.robot_accuracy = 0.0;
   s.robot_repeatability = 0.0;
   SimulationOptions sim;
-  sim.clock_rate = 2.0;
   sim.truth_motion = true;
   const ScenarioResult exact = run_scenario(s, sim, d.list, d.truth);
   ASSERT_EQ(exact.errors.size(), 3u);
@@ -81,7 +79,6 @@ TEST(StationSim, EstopStopsTheJobWithTheValveClosed) {
   ScenarioOptions s;
   s.position = 'A';
   SimulationOptions sim;
-  sim.clock_rate = 8.0;
   sim.truth_motion = true;
   sim.faults = {{FaultKind::kEstop, 3.0}};  // while marking the first or second defect
   const ScenarioResult r = run_scenario(s, sim, d.list, d.truth);
@@ -124,7 +121,6 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
       ScenarioOptions s;
       s.position = 'A';
       SimulationOptions sim;
-      sim.clock_rate = 8.0;
       sim.truth_motion = true;
       sim.faults = {{kind, after}};
       const ScenarioResult r = run_scenario(s, sim, d.list, d.truth);

@@ -48,9 +48,12 @@ class SimInputLine final : public InputLine {
   bool get() override { return line_.active.load(); }
   std::optional<LineEvent> wait_event(double timeout) override {
     std::unique_lock<std::mutex> lock(chip_.mutex_);
-    if (!chip_.changed_.wait_for(lock, std::chrono::duration<double>(std::max(0.0, timeout)),
-                                 [&] { return !line_.events.empty(); }))
-      return std::nullopt;
+    // On the chip's clock: in the twin the e-stop edge is seen at the simulated instant
+    // it is driven.
+    const double deadline = chip_.clock_.now() + std::max(0.0, timeout);
+    while (line_.events.empty() && chip_.clock_.now() < deadline)
+      chip_.clock_.wait_until(lock, chip_.changed_, deadline);
+    if (line_.events.empty()) return std::nullopt;
     const LineEvent e = line_.events.front();
     line_.events.pop_front();
     return e;
@@ -114,7 +117,7 @@ void SimGpio::drive(const std::string& name, bool active) {
     record(name, active, now);
     if (l.requested) l.events.push_back({active, now});
   }
-  changed_.notify_all();
+  clock_.notify_all(changed_);
 }
 
 bool SimGpio::level(const std::string& name) const {

@@ -87,7 +87,7 @@ SafetySupervisor::SafetySupervisor(std::unique_ptr<OutputLine> valve, std::uniqu
   slot_ = register_valve(valve_.get());
   last_kick_ = clock_.now();
   if (estop_ && estop_->get()) reason_ = SafeReason::kEstop;
-  thread_ = std::thread([this] { run(); });
+  thread_ = clock::ParticipantThread(clock_, [this] { run(); });
 }
 
 SafetySupervisor::~SafetySupervisor() {
@@ -157,7 +157,8 @@ void SafetySupervisor::run() {
         latch(SafeReason::kEstop);
       }
     } else {
-      std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_period));
+      std::unique_lock<std::mutex> lock(poll_mutex_);
+      clock_.wait_until(lock, poll_, clock_.now() + options_.poll_period);
     }
     const double now = clock_.now();
     if (now - last_kick_.load() > options_.watchdog_timeout && !latched()) latch(SafeReason::kWatchdog);

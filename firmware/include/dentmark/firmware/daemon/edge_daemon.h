@@ -57,6 +57,8 @@ struct DaemonOptions {
   // Called on the link thread before each accepted request is handled (the twin runs
   // its clock by it). Empty on the edge box.
   std::function<void(const protocol::Decoded&)> before_request;
+  // Called on the link thread after each accepted request was handled. Empty on the box.
+  std::function<void(const protocol::Decoded&)> after_request;
 };
 
 class EdgeDaemon {

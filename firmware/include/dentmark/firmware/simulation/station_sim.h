@@ -55,6 +55,13 @@ struct ScenarioResult {
   bool self_calibrated = false;
   double robot_calibration_error = 0.0, robot_calibration_rotation = 0.0;
   double scanner_calibration_error = 0.0, scanner_calibration_rotation = 0.0;
+  // With a fault: how long after it was injected (simulated seconds) the valve line was
+  // low, the robot's tip stood still, and the last defect was reported. Negative: no
+  // fault. The twin's clock charges no time to computation or to Modbus round trips,
+  // so these are the station's reaction by design (poll periods, timeouts, the robot's
+  // braking and watchdog), not this machine's speed.
+  double fault_time = -1.0;
+  double valve_closed_after = -1.0, robot_still_after = -1.0, reported_after = -1.0;
 };
 
 // A fault the twin injects, `after` seconds after marking starts.
@@ -76,7 +83,6 @@ Fault parse_fault(const std::string& text);
 const char* to_string(FaultKind kind);
 
 struct SimulationOptions {
-  double clock_rate = 1.0;   // simulated seconds per real second (the tracker must keep up)
   bool arm_occludes = true;  // render the robot's arm in the cameras' view
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).

@@ -71,7 +71,7 @@ class CameraTracking final : public PanelTracking {
   hal::StereoCamera stereo_;
   clock::Clock& clock_;
   CameraTrackingConfig config_;
-  std::thread thread_;
+  clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
   std::atomic<bool> stop_{false};
   std::atomic<bool> lost_{false};
   std::atomic<long> captured_{0};

@@ -72,6 +72,10 @@ struct StationConfig {
   double part_timeout = 300.0;    // s to wait for the part-present input before giving up a job
   double heartbeat_period = 1.0;  // s between Status frames pushed to subscribers
   std::string firmware_version;   // reported in Status
+  // Called on the job thread as each job ends, after its last report and before the
+  // end is visible to the host (the twin holds
+  // its clock there, so a run ends at the same simulated time on any machine).
+  std::function<void(std::uint64_t job_id)> on_job_end;
 };
 
 // The station's hardware and surroundings, injected (daemon: hal from the board file;
@@ -145,8 +149,8 @@ class Station {
   std::uint32_t job_faults_ = 0;  // faults the last job ended with
   bool busy_ = false;
   bool stopping_ = false;
-  JobRunner* runner_ = nullptr;  // while a job marks (for cancel)
-  std::thread thread_;
+  JobRunner* runner_ = nullptr;      // while a job marks (for cancel)
+  clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
 };
 
 }  // namespace dentmark::station

@@ -60,7 +60,7 @@ class TrackingMotionSource final : public MotionSource {
   track::Tracker tracker_;
   StereoFrameSource source_;
   clock::Clock* clock_ = nullptr;
-  std::thread thread_;
+  clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
   std::atomic<bool> stop_{false};
   std::atomic<bool> ended_{false};
   std::atomic<long> frames_{0};

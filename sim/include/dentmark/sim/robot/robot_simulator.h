@@ -98,9 +98,9 @@ class RobotSimulator {
   // Observation (thread-safe snapshots).
   std::vector<TipSample> trajectory() const;
   std::vector<SprayRecord> sprays() const;
-  Transform nominal_pose() const;
-  Transform true_pose() const;
-  robot_link::State state() const;
+  Transform nominal_pose();
+  Transform true_pose();
+  robot_link::State state();
   std::uint16_t faults() const;
   long requests() const { return requests_.load(); }
   long connections() const { return connections_.load(); }
@@ -111,7 +111,7 @@ class RobotSimulator {
   void start(std::unique_ptr<Endpoint> endpoint);
   void serve();
   void serve_request(int fd, const std::uint8_t* query, int length);
-  void on_command_block();
+  void on_command_block(double now);
   void step(double now);
   void stop_motion(double now, std::uint16_t fault_bits, robot_link::State state);
   void move_along_path(double u);

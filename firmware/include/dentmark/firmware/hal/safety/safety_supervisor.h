@@ -89,7 +89,9 @@ class SafetySupervisor {
   std::atomic<double> estop_edge_time_{-1.0};
   double pulse_end_ = -1.0;  // clock time to close a pulse; < 0: none (mutex_)
   std::atomic<bool> stop_{false};
-  std::thread thread_;
+  clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
+  std::mutex poll_mutex_;            // the poll's wait on the clock (no e-stop line)
+  std::condition_variable poll_;
   int slot_ = -1;  // index in the emergency registry
 };
 
