@@ -57,6 +57,7 @@ struct FrameResult {
   Transform raw_motion = Transform::Identity();  // this frame's fit alone
   double rms = 0.0;                              // fit residual RMS, m
   double quality = 0.0;                          // 0..1: inlier share × residual term
+  double expected_error = 0.0;                   // m: the motion's expected error at the panel
   std::string note;                              // why !ok
 };
 

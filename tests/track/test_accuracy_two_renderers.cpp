@@ -1,0 +1,113 @@
+// The tracker's accuracy at the station's full geometry (2.8 m, 0.5 m baseline,
+// f = 1740 px at 1280 x 1024; f = 870 px at 640 x 480) on two independent image models:
+// sim/stereo (polygons, box-filtered edges, Gaussian blur and noise) and
+// sim/stereo_raytrace (ray traced, distorted lenses, defocus, Bayer, Poisson noise,
+// motion blur). The same targets hold on both.
+#include <gtest/gtest.h>
+
+#include "accuracy_report.h"
+#include "raytrace_cache.h"
+
+namespace dentmark::track {
+namespace {
+
+using testing::AccuracyReport;
+using testing::measure;
+
+raytrace::RaySequenceOptions ray(double seconds, double fps = 10.0) {
+  raytrace::RaySequenceOptions o;
+  o.seconds = seconds;
+  o.fps = fps;
+  return o;
+}
+
+stereo::SequenceOptions poly(double seconds, double fps = 10.0) {
+  stereo::SequenceOptions o;
+  o.seconds = seconds;
+  o.fps = fps;
+  return o;
+}
+
+template <class Options>
+Options vga(Options o) {
+  o.width = 640;
+  o.height = 480;
+  o.focal_px = 870.0;
+  return o;
+}
+
+AccuracyReport run(const std::string& name, const std::filesystem::path& dir) {
+  const AccuracyReport r = measure(dir);
+  r.print(name);
+  return r;
+}
+
+TEST(TwoRenderers, Clean1280x1024) {
+  for (const auto& r : {run("polygon clean", testing::polygon_rendered("clean", poly(3.9))),
+                        run("ray clean", testing::ray_traced("clean", ray(3.9)))}) {
+    EXPECT_EQ(r.failed, 0);
+    EXPECT_EQ(r.frames.size(), 40u);
+    EXPECT_LE(r.mean, 0.5e-3);
+    EXPECT_LE(r.worst, 1.5e-3);
+  }
+}
+
+TEST(TwoRenderers, Occluded1280x1024) {
+  auto p = poly(3.9);
+  p.occlude = true;
+  auto q = ray(3.9);
+  q.occlude = true;
+  for (const auto& r : {run("polygon occluded", testing::polygon_rendered("occluded", p)),
+                        run("ray occluded", testing::ray_traced("occluded", q))}) {
+    EXPECT_EQ(r.failed, 0);
+    EXPECT_LE(r.mean, 0.8e-3);
+    EXPECT_LE(r.worst, 2.0e-3);
+  }
+}
+
+TEST(TwoRenderers, Vga640x480) {
+  for (const auto& r : {run("polygon 640x480", testing::polygon_rendered("vga", vga(poly(3.9)))),
+                        run("ray 640x480", testing::ray_traced("vga", vga(ray(3.9))))}) {
+    EXPECT_EQ(r.failed, 0);
+    EXPECT_LE(r.mean, 1.5e-3);
+  }
+}
+
+TEST(TwoRenderers, SixtyFramesAt2HzOccluded) {
+  auto p = poly(29.5, 2.0);
+  p.occlude = true;
+  auto q = ray(29.5, 2.0);
+  q.occlude = true;
+  for (const auto& r : {run("polygon 2 Hz occluded", testing::polygon_rendered("long", p)),
+                        run("ray 2 Hz occluded", testing::ray_traced("long", q))}) {
+    EXPECT_EQ(r.failed, 0);
+    EXPECT_EQ(r.frames.size(), 60u);
+    EXPECT_LE(r.mean, 0.8e-3);
+    EXPECT_LE(r.worst, 2.0e-3);
+  }
+}
+
+// A fast line (5 cm/s) that stops for a second and starts again: the filtered motion
+// must not lag the truth by over 1 mm in the frames after the stop or the restart.
+TEST(TwoRenderers, StopAndGoWithoutLag) {
+  auto p = poly(3.9);
+  p.speed = 0.05;
+  p.stop_at = 1.2;
+  p.stop_for = 1.2;
+  auto q = ray(3.9);
+  q.speed = 0.05;
+  q.stop_at = 1.2;
+  q.stop_for = 1.2;
+  for (const auto& r : {run("polygon stop-and-go", testing::polygon_rendered("stopgo", p)),
+                        run("ray stop-and-go", testing::ray_traced("stopgo", q))}) {
+    EXPECT_EQ(r.failed, 0);
+    for (const auto& f : r.frames) {
+      if ((f.t >= 1.2 && f.t <= 1.8) || (f.t >= 2.4 && f.t <= 3.0)) {
+        EXPECT_LE(f.worst, 1.0e-3) << "frame " << f.index << " at " << f.t << " s";
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace dentmark::track
