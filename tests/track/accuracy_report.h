@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -42,6 +43,8 @@ struct FrameError {
   bool ok = false;
   double mean = 0.0, worst = 0.0;                  // m, over the evaluation points
   Eigen::Vector3d axis = Eigen::Vector3d::Zero();  // mean |error| per camL axis, m
+  double raw_mean = 0.0;                           // m: this frame's fit alone, before the motion filter
+  Eigen::Vector3d signed_centre = Eigen::Vector3d::Zero();  // m: error at the points' centroid
   double quality = 0.0;
   double expected_error = 0.0;  // the tracker's own figure, m
 };
@@ -64,6 +67,13 @@ struct AccuracyReport {
     std::printf("%s: frames %zu failed %d: mean %.3f mm, worst %.3f mm; per axis x %.3f y %.3f z %.3f mm\n",
                 name.c_str(), frames.size(), failed, mean * 1e3, worst * 1e3, axis.x() * 1e3, axis.y() * 1e3,
                 axis.z() * 1e3);
+    if (std::getenv("DENTMARK_ACCURACY_FRAMES"))
+      for (const auto& f : frames)
+        std::printf(
+            "  frame %ld t %.2f ok %d: mean %.3f raw %.3f mm; centre error %+.3f %+.3f %+.3f mm; expected "
+            "%.3f mm\n",
+            f.index, f.t, f.ok, f.mean * 1e3, f.raw_mean * 1e3, f.signed_centre.x() * 1e3,
+            f.signed_centre.y() * 1e3, f.signed_centre.z() * 1e3, f.expected_error * 1e3);
     for (std::size_t i = 0; i < features.size(); ++i)
       if (features[i].samples > 0)
         std::printf(
@@ -109,6 +119,8 @@ inline AccuracyReport measure(const std::filesystem::path& dir, const TrackerOpt
       fe.mean += e.norm() / static_cast<double>(eval.size());
       fe.worst = std::max(fe.worst, e.norm());
       fe.axis += e.cwiseAbs() / static_cast<double>(eval.size());
+      fe.raw_mean += (res.raw_motion * p - truth * p).norm() / static_cast<double>(eval.size());
+      fe.signed_centre += e / static_cast<double>(eval.size());
     }
     rep.frames.push_back(fe);
     if (!res.ok) {
