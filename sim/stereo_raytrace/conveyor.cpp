@@ -35,7 +35,8 @@ Eigen::Isometry3d Conveyor::T_camL_panel(double t) const {
       angle > 0.0 ? Eigen::AngleAxisd(angle, wobble / angle).toRotationMatrix() : Eigen::Matrix3d::Identity();
   // The wobble turns the panel about its own centre.
   Eigen::Isometry3d pose = T_camL_panel0;
-  pose.linear() = r * T_camL_panel0.linear();
+  pose.linear() = Eigen::AngleAxisd(turn_rate * t, Eigen::Vector3d::UnitY()).toRotationMatrix() * r *
+                  T_camL_panel0.linear();
   pose.translation() = T_camL_panel0.translation() + travel(t) * direction + shake;
   return pose;
 }

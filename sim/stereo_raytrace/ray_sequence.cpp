@@ -105,6 +105,7 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
   line.speed = o.speed;
   line.stop_at = o.stop_at;
   line.stop_for = o.stop_for;
+  line.turn_rate = o.turn_rate;
   line.direction = Eigen::Vector3d(1.0, 0.02, 0.06).normalized();
   Eigen::Isometry3d pose0 = Eigen::Isometry3d::Identity();
   pose0.linear() =
@@ -183,13 +184,14 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
 
 std::string describe(const RaySequenceOptions& o) {
   std::ostringstream s;
-  s << std::setprecision(10) << "v1 " << o.width << "x" << o.height << " f" << o.focal_px << " pitch"
+  s << std::setprecision(10) << "v2 " << o.width << "x" << o.height << " f" << o.focal_px << " pitch"
     << o.pixel_pitch << " b" << o.baseline << " d" << o.distance << " s" << o.seconds << " fps" << o.fps
     << " v" << o.speed << " e" << o.exposure << "/" << o.exposure_steps << " ss" << o.supersample << " dist"
     << o.distortion << " N" << o.f_number << " focus" << o.focus << " drift" << o.lighting_drift << " occ"
     << o.occlude << " stop" << o.stop_at << "/" << o.stop_for << " seederr" << o.seed_error << " e-"
     << o.sensor.electrons_at_white << "/" << o.sensor.full_well << " read" << o.sensor.read_noise << " black"
     << o.sensor.black_level << " gamma" << o.sensor.gamma << " bayer" << o.sensor.bayer << " seed" << o.seed;
+  if (o.turn_rate != 0.0) s << " turn" << o.turn_rate;
   return s.str();
 }
 

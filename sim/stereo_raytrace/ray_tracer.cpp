@@ -84,7 +84,9 @@ cv::Mat3f RayTracer::render(const Door& door, const std::optional<Arm>& arm,
             // The sub-ray's instant: a permutation of the grid, so time and position decorrelate.
             const std::size_t k =
                 static_cast<std::size_t>((s * 37 + 11) % nn) * slots / static_cast<std::size_t>(nn);
-            sum += radiance(ray(at((i + 0.5) / n_, (j + 0.5) / n_), k), k);
+            // Every sub-ray at its own column and row of an n² x n² grid (the canonical
+            // multi-jittered arrangement): an edge's coverage resolves to 1/n² px, not 1/n.
+            sum += radiance(ray(at((i + (j + 0.5) / n_) / n_, (j + (i + 0.5) / n_) / n_), k), k);
           }
           sum /= static_cast<float>(nn);
         }

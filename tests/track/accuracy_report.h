@@ -83,6 +83,16 @@ struct AccuracyReport {
   }
 };
 
+inline double pearson(const std::vector<double>& a, const std::vector<double>& b) {
+  const double n = static_cast<double>(a.size());
+  double ma = 0, mb = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) ma += a[i] / n, mb += b[i] / n;
+  double sab = 0, saa = 0, sbb = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    sab += (a[i] - ma) * (b[i] - mb), saa += (a[i] - ma) * (a[i] - ma), sbb += (b[i] - mb) * (b[i] - mb);
+  return sab / std::sqrt(saa * sbb);
+}
+
 inline AccuracyReport measure(const std::filesystem::path& dir, const TrackerOptions& options = {}) {
   const Sequence seq = load_sequence(dir);
   const auto seeds = load_seeds(dir / "seeds.yaml", seq.calibration.size);

@@ -109,5 +109,37 @@ TEST(TwoRenderers, StopAndGoWithoutLag) {
   }
 }
 
+// A panel that really turns (2 degrees over the run) is not a plain conveyor: the
+// tracker must report the turn rather than hold the rotation at none.
+TEST(TwoRenderers, FollowsAPanelThatTurns) {
+  auto q = ray(3.9);
+  q.turn_rate = 0.01;  // rad/s
+  const AccuracyReport r = run("ray turning", testing::ray_traced("turning", q));
+  EXPECT_EQ(r.failed, 0);
+  EXPECT_LE(r.mean, 1.0e-3);
+  EXPECT_LE(r.worst, 3.0e-3);
+}
+
+// Each frame's expected error (FrameResult::expected_error) against its true error,
+// pooled over both renderers and both sizes (Pearson correlation), and its scale.
+TEST(TwoRenderers, ExpectedErrorTracksTheTrueError) {
+  std::vector<double> expected, actual;
+  for (const auto& r : {measure(testing::polygon_rendered("clean", poly(3.9))),
+                        measure(testing::ray_traced("clean", ray(3.9))),
+                        measure(testing::polygon_rendered("vga", vga(poly(3.9)))),
+                        measure(testing::ray_traced("vga", vga(ray(3.9))))})
+    for (const auto& f : r.frames)
+      if (f.ok && f.index > 0) expected.push_back(f.expected_error), actual.push_back(f.mean);
+  const double rho = testing::pearson(expected, actual);
+  double se = 0, sa = 0;
+  for (std::size_t i = 0; i < expected.size(); ++i) se += expected[i], sa += actual[i];
+  std::printf(
+      "expected vs true error over %zu frames: correlation %.2f, mean expected %.3f mm, true %.3f mm\n",
+      expected.size(), rho, 1e3 * se / expected.size(), 1e3 * sa / actual.size());
+  EXPECT_GT(rho, 0.3);
+  EXPECT_GT(se / sa, 0.5);
+  EXPECT_LT(se / sa, 3.0);
+}
+
 }  // namespace
 }  // namespace dentmark::track

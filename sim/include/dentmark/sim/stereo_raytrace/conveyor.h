@@ -15,6 +15,7 @@ struct Conveyor {
   double stop_at = -1.0;    // s the deceleration starts; < 0: never
   double stop_for = 0.0;    // s at rest
   double ramp = 0.15;       // s from full speed to rest and back
+  double turn_rate = 0.0;   // rad/s about camL y through the panel's origin (0: a plain line)
 
   double travel(double t) const;  // m along the line
   Eigen::Isometry3d T_camL_panel(double t) const;

@@ -41,6 +41,7 @@ struct RaySequenceOptions {
   bool occlude = false;          // the arm hides the frame's left end from 30 % to 60 % of the run
   double stop_at = -1.0;         // s the line starts to stop (< 0: never)
   double stop_for = 0.0;         // s at rest
+  double turn_rate = 0.0;        // rad/s: the panel turns about camL y (not a plain conveyor)
   double seed_error = 3.0;       // px, uniform in [-e, e] per axis
   SensorOptions sensor;
   std::uint64_t seed = 7;

@@ -4,7 +4,8 @@
 // exposure time. Every pixel gets one ray through its centre; a pixel whose corners do
 // not all see the same region at the start and the end of the exposure (an edge, a
 // corner, the arm's outline; widened by one pixel) is supersampled on an n x n grid
-// instead, each sub-ray at its own time within the exposure (motion blur).
+// instead (n-rooks: no two sub-rays share a row or a column), each sub-ray at its own
+// time within the exposure (motion blur).
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
