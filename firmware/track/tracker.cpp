@@ -356,12 +356,16 @@ double Tracker::expected_error(const Eigen::Matrix<double, 6, 1>& fit_sd) const 
   // times the features' spread about it (2/3 of it perpendicular to a random axis).
   const Eigen::Matrix<double, 6, 1> v = filter_.variance();
   const double k = (2.0 / 3.0) * spread_ * spread_;
-  if (!conveyor_) return std::sqrt(v.tail<3>().sum() + v.head<3>().sum() * k);
-  // On the line: the filtered translation along it, and the turn the model leaves out,
-  // bounded by the first frame's own tilt error (about one frame's rotation noise).
-  const auto d = line_.direction();
-  const double along = d ? d->cwiseAbs2().dot(v.tail<3>()) : v.tail<3>().sum();
-  return std::sqrt(along + fit_sd.head<3>().squaredNorm() * k);
+  if (conveyor_) {
+    // On the line: the filtered translation along it, and how well the filter knows
+    // the rotation to be none.
+    const auto d = line_.direction();
+    const double along = d ? d->cwiseAbs2().dot(v.tail<3>()) : v.tail<3>().sum();
+    return std::sqrt(along + v.head<3>().sum() * k);
+  }
+  // Off it: the filter's posterior, plus the first frame's own tilt error (about one
+  // frame's rotation deviation), which every M(k) inherits and no filter sees.
+  return std::sqrt(v.tail<3>().sum() + (v.head<3>().sum() + fit_sd.head<3>().squaredNorm()) * k);
 }
 
 FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, double t, long index) {

@@ -109,6 +109,21 @@ TEST(TwoRenderers, StopAndGoWithoutLag) {
   }
 }
 
+// What the error was made of: without the conveyor's line every M(k) carries the
+// first frame's tilt (its depth noise on a wide, short layout), 1-2 mm at the lower
+// door, almost all of it along the optical axis.
+TEST(TwoRenderers, WithoutTheLineTheFirstFramesTiltDominates) {
+  TrackerOptions off;
+  off.line.enabled = false;
+  const AccuracyReport r = measure(testing::ray_traced("clean", ray(3.9)), off);
+  r.print("ray clean, no line model");
+  EXPECT_GT(r.mean, 0.5e-3);
+  EXPECT_GT(r.axis.z(), 3.0 * std::max(r.axis.x(), r.axis.y()));
+  double centre_z = 0.0;
+  for (const auto& f : r.frames) centre_z += f.signed_centre.z() / static_cast<double>(r.frames.size());
+  EXPECT_GT(std::abs(centre_z), 0.5e-3) << "a bias common to the frames, not noise";
+}
+
 // A panel that really turns (2 degrees over the run) is not a plain conveyor: the
 // tracker must report the turn rather than hold the rotation at none.
 TEST(TwoRenderers, FollowsAPanelThatTurns) {
@@ -121,13 +136,19 @@ TEST(TwoRenderers, FollowsAPanelThatTurns) {
 }
 
 // Each frame's expected error (FrameResult::expected_error) against its true error,
-// pooled over both renderers and both sizes (Pearson correlation), and its scale.
+// pooled over both renderers, both sizes and a panel that turns (Pearson correlation),
+// and its scale.
 TEST(TwoRenderers, ExpectedErrorTracksTheTrueError) {
   std::vector<double> expected, actual;
-  for (const auto& r : {measure(testing::polygon_rendered("clean", poly(3.9))),
-                        measure(testing::ray_traced("clean", ray(3.9))),
-                        measure(testing::polygon_rendered("vga", vga(poly(3.9)))),
-                        measure(testing::ray_traced("vga", vga(ray(3.9))))})
+  for (const auto& r :
+       {measure(testing::polygon_rendered("clean", poly(3.9))),
+        measure(testing::ray_traced("clean", ray(3.9))),
+        measure(testing::polygon_rendered("vga", vga(poly(3.9)))),
+        measure(testing::ray_traced("vga", vga(ray(3.9)))), measure(testing::ray_traced("turning", [] {
+          auto q = ray(3.9);
+          q.turn_rate = 0.01;
+          return q;
+        }()))})
     for (const auto& f : r.frames)
       if (f.ok && f.index > 0) expected.push_back(f.expected_error), actual.push_back(f.mean);
   const double rho = testing::pearson(expected, actual);
@@ -136,9 +157,9 @@ TEST(TwoRenderers, ExpectedErrorTracksTheTrueError) {
   std::printf(
       "expected vs true error over %zu frames: correlation %.2f, mean expected %.3f mm, true %.3f mm\n",
       expected.size(), rho, 1e3 * se / expected.size(), 1e3 * sa / actual.size());
-  EXPECT_GT(rho, 0.3);
+  EXPECT_GT(rho, 0.45);
   EXPECT_GT(se / sa, 0.5);
-  EXPECT_LT(se / sa, 3.0);
+  EXPECT_LT(se / sa, 2.0);
 }
 
 }  // namespace
