@@ -26,6 +26,7 @@ int run_track(const TrackCliOptions& o) {
   try {
     track::TrackerOptions options;
     options.filter.enabled = !o.no_filter;
+    options.line.enabled = !o.no_filter;
     const auto start = std::chrono::steady_clock::now();
     const track::ReplayResult result = o.model.empty()
                                            ? track::replay_sequence(o.sequence, options)
@@ -67,7 +68,8 @@ void register_track(CLI::App& app) {
   cmd->add_option("--json", opt->json, "Write per-frame motion as JSON");
   cmd->add_option("--model", opt->model, "Acquire this taught panel model instead of using seeds.yaml");
   cmd->add_flag("--truth", opt->truth, "Compare with the directory's truth.csv and eval_points.csv");
-  cmd->add_flag("--no-filter", opt->no_filter, "Report each frame's own fit (no motion filter)");
+  cmd->add_flag("--no-filter", opt->no_filter,
+                "Report each frame's own fit (no motion filter, no conveyor line model)");
   cmd->callback([opt] { exit_code() = run_track(*opt); });
 }
 

@@ -66,7 +66,8 @@ Transform JobRunner::predicted_tool_pose(const Target& target, const plan::Motio
 
 bool JobRunner::tracking_ok() {
   const auto e = motion_.latest();
-  return e && e->ok && e->quality >= config_.min_quality && clock_.now() - e->t <= config_.max_estimate_age;
+  return e && e->ok && e->quality >= config_.min_quality && e->expected_error <= config_.max_expected_error &&
+         clock_.now() - e->t <= config_.max_estimate_age;
 }
 
 void JobRunner::check_interlocks() {

@@ -68,6 +68,7 @@ void TrackingMotionSource::publish(const track::FrameResult& r) {
   e.M_camL = r.motion;
   e.ok = r.ok;
   e.quality = r.quality;
+  e.expected_error = r.expected_error;
   e.features = r.features;
   e.rms = r.rms;
   std::lock_guard lock(mutex_);

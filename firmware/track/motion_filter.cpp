@@ -52,6 +52,12 @@ void MotionFilter::reset(double t0) {
   restarts_ = 0;
 }
 
+Eigen::Matrix<double, 6, 1> MotionFilter::variance() const {
+  Eigen::Matrix<double, 6, 1> v;
+  for (std::size_t i = 0; i < 6; ++i) v(static_cast<Eigen::Index>(i)) = axes_[i].p00;
+  return v;
+}
+
 Transform MotionFilter::predict(double t) const {
   Eigen::Matrix<double, 6, 1> p;
   const double dt = t - t_;

@@ -14,6 +14,7 @@ PoseRefineResult refine_pose(const StereoCalibration& calib, const Transform& st
   const double fl = calib.left.K(0, 0), fr = calib.right.K(0, 0);
   Transform m = start;
   double rms = 0.0;
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   for (int it = 0; it <= iterations; ++it) {
     Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
@@ -44,6 +45,7 @@ PoseRefineResult refine_pose(const StereoCalibration& calib, const Transform& st
       }
     }
     rms = count ? std::sqrt(sq / count) : 0.0;
+    information = h;
     if (it == iterations || count < 6) break;
     const Eigen::Matrix<double, 6, 1> step = h.ldlt().solve(-g);
     if (!step.allFinite()) break;
@@ -54,7 +56,7 @@ PoseRefineResult refine_pose(const StereoCalibration& calib, const Transform& st
     m = d * m;
     if (step.norm() < 1e-12) break;
   }
-  return {m, rms};
+  return {m, rms, information};
 }
 
 }  // namespace dentmark::track

@@ -134,8 +134,10 @@ void write_replay_json(const ReplayResult& result, const fs::path& path) {
       for (int c = 0; c < 4; ++c) row.push_back(f.motion.matrix()(r, c));
       m.push_back(row);
     }
-    nlohmann::json j = {{"index", f.index},     {"t", f.t},     {"ok", f.ok}, {"features", f.features},
-                        {"quality", f.quality}, {"rms", f.rms}, {"motion", m}};
+    nlohmann::json j = {{"index", f.index},     {"t", f.t},
+                        {"ok", f.ok},           {"features", f.features},
+                        {"quality", f.quality}, {"expected_error", f.expected_error},
+                        {"rms", f.rms},         {"motion", m}};
     if (!f.note.empty()) j["note"] = f.note;
     frames.push_back(j);
   }

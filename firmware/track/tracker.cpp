@@ -89,7 +89,10 @@ GridTemplate Tracker::template_now(std::size_t i, Cam cam, const Transform& moti
 }
 
 Tracker::Tracker(StereoCalibration calibration, TrackerOptions options)
-    : calib_(std::move(calibration)), opt_(options), filter_(Eigen::Vector3d::Zero(), options.filter) {}
+    : calib_(std::move(calibration)),
+      opt_(options),
+      filter_(Eigen::Vector3d::Zero(), options.filter),
+      line_(options.line) {}
 
 FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, double t,
                            std::span<const cv::Point2f> seeds_right, long index) {
@@ -174,7 +177,16 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   first_right_n_ = calib_.normalize(Cam::kRight, right_);
   const std::vector<Eigen::Vector3d> layout = reference_.points();
   plane_normal_ = plane_normal(layout).value_or(Eigen::Vector3d::Zero());
-  filter_ = MotionFilter(reference_.centroid(), opt_.filter);
+  filter_centre_ = reference_.centroid();
+  filter_ = MotionFilter(filter_centre_, opt_.filter);
+  line_ = ConveyorLine(opt_.line);
+  conveyor_ = false;
+  spread_ = [&] {
+    double s = 0.0;
+    for (const auto& p : layout) s += (p - filter_centre_).squaredNorm();
+    return std::sqrt(s / static_cast<double>(layout.size()));
+  }();
+  px_rms_ema_ = 0.0;
   filter_.reset(t);
   reference_depth_ = reference_.centroid().z();
   prev_left_ = pl;
@@ -294,21 +306,66 @@ bool Tracker::reacquire_lost(const Transform& motion, const ImagePyramid& pl, co
 void Tracker::accept(FrameResult& result, double t, const std::vector<Eigen::Vector3d>& current,
                      const std::vector<bool>& valid) {
   const std::size_t n = current.size();
-  const double spread = [&] {
-    const Eigen::Vector3d c = reference_.centroid();
-    double s = 0.0;
-    for (const auto& p : reference_.points()) s += (p - c).squaredNorm();
-    return std::sqrt(s / static_cast<double>(n));
-  }();
   // Only frames that see most of the panel refine the layout: their motion is well
   // determined, so mapping their features back adds little error of its own.
   if (result.features >= opt_.refine_min_share * static_cast<double>(n))
     refine_reference(current, valid, result.raw_motion);
   rms_ema_ = rms_ema_ > 0.0 ? 0.9 * rms_ema_ + 0.1 * result.rms : result.rms;
-  const double sigma_point = std::max(rms_ema_, opt_.robust.noise_floor * 0.5);
-  const double k = 1.0 / std::sqrt(static_cast<double>(result.features));
-  result.motion = filter_.update(t, result.raw_motion, Eigen::Vector3d::Constant(sigma_point * k / spread),
-                                 Eigen::Vector3d::Constant(sigma_point * k));
+  px_rms_ema_ = px_rms_ema_ > 0.0 ? 0.9 * px_rms_ema_ + 0.1 * px_rms_now_ : px_rms_now_;
+  // The fit's covariance from its image residuals (pose_refine.h), in the filter's
+  // coordinates (rotation about the reference centroid, translation of the centroid):
+  // each coordinate gets its own uncertainty, and depth and the tilt it drives are
+  // trusted as little as the disparity allows, not as much as the lateral position.
+  const Eigen::Matrix<double, 6, 1> sd = fit_deviation(result.raw_motion);
+  const Transform filtered = filter_.update(t, result.raw_motion, sd.head<3>(), sd.tail<3>());
+  // The conveyor's line (conveyor_line.h): across it is noise, and the panel does not
+  // turn on it. A filtered rotation within the gate of one frame's rotation noise is the
+  // first frame's tilt error that every M(k) inherits (a fit of a wide, short layout
+  // tilts by its depth noise; at the lower door it is 1-2 mm), not motion.
+  line_.add(filter_.to_params(result.raw_motion).tail<3>());
+  Eigen::Matrix<double, 6, 1> p = filter_.to_params(filtered);
+  const bool turning = (p.head<3>().cwiseAbs().array() > opt_.line.turn_gate * sd.head<3>().array()).any();
+  conveyor_ = opt_.line.enabled && !turning;
+  if (conveyor_) {
+    p.tail<3>() = line_.onto_line(p.tail<3>());  // unchanged until the direction is known
+    p.head<3>().setZero();
+  }
+  result.motion = filter_.from_params(p);
+  result.expected_error = expected_error(sd);
+}
+
+Eigen::Matrix<double, 6, 1> Tracker::fit_deviation(const Transform& motion) const {
+  // (δω, δτ) → (δω, δt): δt = δτ + [M c]× δω, with c the filter's centre.
+  const Eigen::Vector3d q = motion * filter_centre_;
+  Eigen::Matrix<double, 6, 6> b = Eigen::Matrix<double, 6, 6>::Identity();
+  b.block<3, 3>(3, 0) << 0, -q.z(), q.y(), q.z(), 0, -q.x(), -q.y(), q.x(), 0;
+  const Eigen::Matrix<double, 6, 6> info = b.transpose() * last_information_ * b;
+  // Pixel noise: the refinement's residual RMS (over 4n residuals, 6 parameters), never
+  // below the matching noise the options assume.
+  const double px = std::max(opt_.disparity_noise, px_rms_ema_);
+  const Eigen::Matrix<double, 6, 6> cov =
+      px * px * info.ldlt().solve(Eigen::Matrix<double, 6, 6>::Identity());
+  Eigen::Matrix<double, 6, 1> sd;
+  for (int i = 0; i < 6; ++i) sd(i) = std::sqrt(std::max(cov(i, i), 1e-18));
+  if (!sd.allFinite()) sd.setConstant(1.0);
+  return sd;
+}
+
+double Tracker::expected_error(const Eigen::Matrix<double, 6, 1>& fit_sd) const {
+  // RMS error at the reference features: translation of the centroid plus rotation
+  // times the features' spread about it (2/3 of it perpendicular to a random axis).
+  const Eigen::Matrix<double, 6, 1> v = filter_.variance();
+  const double k = (2.0 / 3.0) * spread_ * spread_;
+  if (conveyor_) {
+    // On the line: the filtered translation along it, and how well the filter knows
+    // the rotation to be none.
+    const auto d = line_.direction();
+    const double along = d ? d->cwiseAbs2().dot(v.tail<3>()) : v.tail<3>().sum();
+    return std::sqrt(along + v.head<3>().sum() * k);
+  }
+  // Off it: the filter's posterior, plus the first frame's own tilt error (about one
+  // frame's rotation deviation), which every M(k) inherits and no filter sees.
+  return std::sqrt(v.tail<3>().sum() + (v.head<3>().sum() + fit_sd.head<3>().squaredNorm()) * k);
 }
 
 FrameResult Tracker::track(const cv::Mat& left_in, const cv::Mat& right_in, double t, long index) {
@@ -413,6 +470,10 @@ FrameResult Tracker::fit_and_filter(long index, double t, std::vector<Eigen::Vec
         calib_, fit.T_to_from, ref_in, calib_.normalize(Cam::kLeft, pl), calib_.normalize(Cam::kRight, pr));
     r.raw_motion = refined.motion;
     r.motion = refined.motion;
+    last_information_ = refined.information;
+    const double dof = std::max(1.0, 4.0 * static_cast<double>(ref_in.size()) - 6.0);
+    const double px_rms = refined.rms_px * std::sqrt(4.0 * static_cast<double>(ref_in.size()) / dof);
+    px_rms_now_ = px_rms;
     r.rms = fit.rms;
     const double share = static_cast<double>(fit.inliers) / static_cast<double>(reference_.size());
     r.quality = share / (1.0 + std::pow(fit.rms / 1e-3, 2));

@@ -115,6 +115,7 @@ class LineMotion final : public MotionSource {
     e.M_camL = predict(e.t);
     e.ok = !(lost_from >= 0 && e.t >= lost_from);
     e.quality = e.ok ? 1.0 : 0.0;
+    e.expected_error = expected_error;
     e.features = 10;
     return e;
   }
@@ -124,6 +125,7 @@ class LineMotion final : public MotionSource {
     return m;
   }
   double lost_from = -1.0;
+  double expected_error = 2e-4;  // m, what the tracker reports
 
  private:
   clock::Clock& clock_;

@@ -120,6 +120,22 @@ TEST(JobRunner, LostTrackingSkipsInsteadOfGuessing) {
   EXPECT_TRUE(robot.sprays.empty());
 }
 
+TEST(JobRunner, RefusesToMarkWhenTheTrackerIsUnsure) {
+  clock::SimClock clock;
+  JobConfig cfg = config();
+  cfg.tracking_timeout = 1.0;
+  MockRobot robot(clock, cfg.planner.limits);
+  MockSafety safety(clock);
+  LineMotion motion(clock, 0.014);
+  motion.expected_error = 1.5 * cfg.max_expected_error;  // ok and quality 1, but unsure
+  JobRunner runner(robot, safety, motion, clock, cfg);
+  const auto report = runner.run(list_of({{0.1, 0.0}}), 0.0);
+  ASSERT_EQ(report.marks.size(), 1u);
+  EXPECT_EQ(report.marks[0].outcome, MarkOutcome::kSkipped);
+  EXPECT_EQ(report.marks[0].reason, MarkReason::kTrackingLost);
+  EXPECT_TRUE(robot.sprays.empty());
+}
+
 TEST(JobRunner, OutOfReachDefectsAreSkippedWithReason) {
   clock::SimClock clock;
   JobConfig cfg = config();

@@ -11,6 +11,7 @@
 #include "dentmark/firmware/track/sequence.h"
 #include "dentmark/firmware/track/tracker.h"
 #include "dentmark/sim/stereo/sequence_writer.h"
+#include "dentmark/sim/stereo_raytrace/ray_sequence.h"
 
 namespace {
 
@@ -22,35 +23,55 @@ struct Frames {
   std::vector<cv::Mat> left, right;
 };
 
+Frames load_frames(const std::filesystem::path& dir) {
+  Frames out;
+  out.seq = track::load_sequence(dir);
+  out.seeds = track::load_seeds(dir / "seeds.yaml", out.seq.calibration.size);
+  for (const auto& e : out.seq.frames) {
+    out.left.push_back(track::load_grey(e.left, out.seq.calibration.size));
+    out.right.push_back(track::load_grey(e.right, out.seq.calibration.size));
+  }
+  return out;
+}
+
+// A sequence rendered here into a temporary directory (removed after loading), unless
+// the environment variable `given` names one rendered beforehand.
+template <class Render>
+Frames rendered(const char* given_env, const char* tag, Render render) {
+  const char* given = std::getenv(given_env);
+  if (given && *given) return load_frames(given);
+  const auto dir = std::filesystem::temp_directory_path() /
+                   (std::string("dentmark-bench-") + tag + "-" + std::to_string(::getpid()));
+  render(dir);
+  Frames out = load_frames(dir);
+  std::filesystem::remove_all(dir);
+  return out;
+}
+
 const Frames& frames() {
-  static const Frames f = [] {
-    // DENTMARK_BENCH_SEQUENCE: the same sequence rendered beforehand (`dentmark synth
-    // stereo --seconds 3`), for machines where rendering it here takes minutes (the
-    // emulated guest of the system tests).
-    const char* given = std::getenv("DENTMARK_BENCH_SEQUENCE");
-    const auto dir = given && *given ? std::filesystem::path(given)
-                                     : std::filesystem::temp_directory_path() /
-                                           ("dentmark-bench-" + std::to_string(::getpid()));
-    if (!(given && *given)) {
-      stereo::SequenceOptions o;  // 1280 x 1024, f = 1740 px, 0.5 m baseline, 2.8 m
-      o.seconds = 3.0;
-      stereo::write_sequence(o, dir);
-    }
-    Frames out;
-    out.seq = track::load_sequence(dir);
-    out.seeds = track::load_seeds(dir / "seeds.yaml", out.seq.calibration.size);
-    for (const auto& e : out.seq.frames) {
-      out.left.push_back(track::load_grey(e.left, out.seq.calibration.size));
-      out.right.push_back(track::load_grey(e.right, out.seq.calibration.size));
-    }
-    if (!(given && *given)) std::filesystem::remove_all(dir);
-    return out;
-  }();
+  // DENTMARK_BENCH_SEQUENCE: the same sequence rendered beforehand (`dentmark synth
+  // stereo --seconds 3`), for machines where rendering it here takes minutes (the
+  // emulated guest of the system tests).
+  static const Frames f = rendered("DENTMARK_BENCH_SEQUENCE", "poly", [](const std::filesystem::path& dir) {
+    stereo::SequenceOptions o;  // 1280 x 1024, f = 1740 px, 0.5 m baseline, 2.8 m
+    o.seconds = 3.0;
+    stereo::write_sequence(o, dir);
+  });
   return f;
 }
 
-void BM_TrackStereoFrame1280x1024(benchmark::State& state) {
-  const Frames& f = frames();
+// The same station through the ray-traced renderer (distorted lenses, Bayer, noise).
+const Frames& ray_frames() {
+  static const Frames f =
+      rendered("DENTMARK_BENCH_RAY_SEQUENCE", "ray", [](const std::filesystem::path& dir) {
+        raytrace::RaySequenceOptions o;
+        o.seconds = 3.0;
+        raytrace::write_ray_sequence(o, dir);
+      });
+  return f;
+}
+
+void track_frames(benchmark::State& state, const Frames& f) {
   track::Tracker tracker(f.seq.calibration);
   tracker.start(f.left[0], f.right[0], f.seq.frames[0].t, f.seeds);
   std::size_t k = 1;
@@ -69,7 +90,16 @@ void BM_TrackStereoFrame1280x1024(benchmark::State& state) {
   }
   state.counters["features"] = features;
 }
+
+void BM_TrackStereoFrame1280x1024(benchmark::State& state) {
+  track_frames(state, frames());
+}
 BENCHMARK(BM_TrackStereoFrame1280x1024)->Unit(benchmark::kMillisecond);
+
+void BM_TrackRayTracedStereoFrame1280x1024(benchmark::State& state) {
+  track_frames(state, ray_frames());
+}
+BENCHMARK(BM_TrackRayTracedStereoFrame1280x1024)->Unit(benchmark::kMillisecond);
 
 void BM_StartFromSeeds1280x1024(benchmark::State& state) {
   const Frames& f = frames();

@@ -59,6 +59,7 @@ struct JobConfig {
   double correction_tolerance = 4e-4;  // m: re-aim before spraying when the target moved more
   int max_corrections = 3;
   double min_quality = 0.2;          // tracker quality below this counts as lost
+  double max_expected_error = 2e-3;  // m: a tracker less sure than this counts as lost
   double max_estimate_age = 0.5;     // s: an older estimate counts as lost
   double tracking_timeout = 5.0;     // s to wait for tracking before giving up on a defect
   double move_timeout_margin = 2.0;  // s allowed beyond the planned move time

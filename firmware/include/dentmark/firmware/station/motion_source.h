@@ -13,7 +13,8 @@ struct MotionEstimate {
   double t = 0.0;  // s, the clock's time of the frame
   Transform M_camL = Transform::Identity();
   bool ok = false;
-  double quality = 0.0;  // 0..1 (tracker's figure)
+  double quality = 0.0;         // 0..1 (tracker's figure)
+  double expected_error = 0.0;  // m: the tracker's expected error of M_camL (0: not given)
   int features = 0;
   double rms = 0.0;  // m, fit residual
 };

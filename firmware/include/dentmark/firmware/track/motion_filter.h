@@ -15,7 +15,11 @@ namespace dentmark::track {
 
 struct MotionFilterOptions {
   double accel_noise_translation = 0.003;  // m/s^2/sqrt(Hz): how hard a smooth line may accelerate
-  double accel_noise_rotation = 0.003;     // rad/s^2/sqrt(Hz)
+  // A conveyor carries the panel along a line without turning it: the rotation only
+  // shakes with the line's vibration, so rotation is averaged over many frames (the
+  // per-frame rotation is the least certain part of a stereo fit of a wide, short
+  // feature layout: its depth noise levers onto the whole panel).
+  double accel_noise_rotation = 3e-4;  // rad/s^2/sqrt(Hz)
   double gate_sigmas = 4.0;
   bool enabled = true;
 };
@@ -32,8 +36,14 @@ class MotionFilter {
   // (rotation rad, translation m); returns the filtered motion.
   Transform update(double t, const Transform& measured, const Eigen::Vector3d& sigma_rotation,
                    const Eigen::Vector3d& sigma_translation);
+  // Posterior variance of each coordinate (rotation vector about the centre, rad²;
+  // translation of the centre, m²).
+  Eigen::Matrix<double, 6, 1> variance() const;
   // Number of gate restarts so far (for diagnostics).
   int restarts() const { return restarts_; }
+  // M as (rotation vector, translation of the centre) and back.
+  Eigen::Matrix<double, 6, 1> to_params(const Transform& m) const;
+  Transform from_params(const Eigen::Matrix<double, 6, 1>& p) const;
 
  private:
   struct Axis {
@@ -42,9 +52,6 @@ class MotionFilter {
     double last_z = 0.0, last_t = 0.0;
     bool fresh = true;  // no velocity known yet
   };
-  Eigen::Matrix<double, 6, 1> to_params(const Transform& m) const;
-  Transform from_params(const Eigen::Matrix<double, 6, 1>& p) const;
-
   Eigen::Vector3d centre_;
   MotionFilterOptions options_;
   std::array<Axis, 6> axes_{};

@@ -15,6 +15,10 @@ namespace dentmark::track {
 struct PoseRefineResult {
   Transform motion = Transform::Identity();
   double rms_px = 0.0;  // reprojection RMS over both cameras
+  // Σ JᵀJ at the result, per px² of image noise, for the left perturbation
+  // M → exp(δω) M + δt, parameters (δω, δt): the inverse, times the pixel noise
+  // variance, is the motion's covariance.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 // reference: camL points at the first frame; n_left / n_right: their undistorted

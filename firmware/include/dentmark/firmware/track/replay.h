@@ -33,7 +33,7 @@ ReplayResult replay_sequence_with_model(const std::filesystem::path& dir, const 
 PanelModel teach_sequence(const std::filesystem::path& dir, long index = -1,
                           const std::filesystem::path& seeds = {}, const TrackerOptions& options = {});
 
-// {"frames":[{"index","t","ok","features","quality","rms","motion":[[4x4]]}]}, written to
+// {"frames":[{"index","t","ok","features","quality","expected_error","rms","motion":[[4x4]]}]}, written to
 // a temporary file then renamed.
 void write_replay_json(const ReplayResult& result, const std::filesystem::path& path);
 

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "dentmark/firmware/track/conveyor_line.h"
 #include "dentmark/firmware/track/corner_refine.h"
 #include "dentmark/firmware/track/motion_filter.h"
 #include "dentmark/firmware/track/pyramid_lk.h"
@@ -33,6 +34,7 @@ struct TrackerOptions {
   StereoMatchOptions stereo;
   RobustMotionOptions robust;
   MotionFilterOptions filter;
+  ConveyorLineOptions line;
   int template_half = 7;          // appearance / re-acquisition template, px
   double max_fb_error = 0.5;      // forward–backward LK disagreement, px
   double max_subpix_shift = 2.0;  // cornerSubPix may move an LK point this far, px
@@ -57,6 +59,7 @@ struct FrameResult {
   Transform raw_motion = Transform::Identity();  // this frame's fit alone
   double rms = 0.0;                              // fit residual RMS, m
   double quality = 0.0;                          // 0..1: inlier share × residual term
+  double expected_error = 0.0;                   // m: the motion's expected error at the panel
   std::string note;                              // why !ok
 };
 
@@ -110,6 +113,11 @@ class Tracker {
   GridTemplate template_now(std::size_t i, Cam c, const Transform& motion) const;
 
   double expected_depth_error(double depth) const;
+  // Standard deviations of the last fit in the filter's six coordinates.
+  Eigen::Matrix<double, 6, 1> fit_deviation(const Transform& motion) const;
+  // The reported motion's expected RMS error at the reference features, m (fit_sd:
+  // this frame's fit_deviation).
+  double expected_error(const Eigen::Matrix<double, 6, 1>& fit_sd) const;
   double disagreement_limit() const;
 
   StereoCalibration calib_;
@@ -117,6 +125,8 @@ class Tracker {
   ReferenceBuffer reference_;
   std::vector<int> seed_of_feature_;
   MotionFilter filter_;
+  ConveyorLine line_;
+  bool conveyor_ = false;  // the last motion was reported on the conveyor's line
   ImagePyramid prev_left_, prev_right_;
   std::vector<cv::Point2f> left_, right_;
   std::vector<bool> active_;
@@ -128,6 +138,10 @@ class Tracker {
   std::vector<cv::Point2d> first_left_n_, first_right_n_;  // undistorted, normalised
   Eigen::Vector3d plane_normal_ = Eigen::Vector3d::Zero();
   double rms_ema_ = 0.0;
+  double px_rms_ema_ = 0.0, px_rms_now_ = 0.0;  // pose refinement's residual, px
+  Eigen::Matrix<double, 6, 6> last_information_ = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Vector3d filter_centre_ = Eigen::Vector3d::Zero();
+  double spread_ = 0.0;  // RMS distance of the reference features from their centroid, m
   double reference_depth_ = 1.0;
   bool started_ = false;
 };
