@@ -28,6 +28,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CLASSES = ["features", "lines", "coarse", "flying"]
+QUICK_PANEL = []  # --quick: smaller independent doors
 
 
 def indep_args(cls, seed):
@@ -87,17 +88,18 @@ def match(truth, found):
     return tu, [found[j] for j in range(len(found)) if not du[j]]
 
 
-def run_one(dentmark, detector, gen, cls, seed, work, keep):
+def run_one(dentmark, detector, gen, cls, seed, work, keep, config=None, reuse=False):
     base = os.path.join(work, "%s_%s_%d" % (gen, cls, seed))
     ply, truth, out = base + ".ply", base + "_truth.json", base + ".json"
     if gen == "indep":
         cmd = [os.path.join(HERE, "door_scan.py"), "--out", ply, "--truth", truth, "--seed", str(seed)]
-        cmd += indep_args(cls, seed)
+        cmd += indep_args(cls, seed) + QUICK_PANEL
     else:
         cmd = [dentmark, "synth", "scan", "--out", ply, "--truth", truth, "--seed", str(seed)] + own_args(cls, seed)
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-    subprocess.run([detector, "detect", ply, "--out", base + ".dml", "--json", out], check=True,
-                   stdout=subprocess.DEVNULL)
+    if not (reuse and os.path.exists(ply) and os.path.exists(truth)):
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([detector, "detect", ply, "--out", base + ".dml", "--json", out] +
+                   (["--config", config] if config else []), check=True, stdout=subprocess.DEVNULL)
     t = json.load(open(truth))
     d = json.load(open(out))
     found = [x for x in d["defects"] if x["class"] in ("dent", "bump", "hole")]
@@ -108,7 +110,7 @@ def run_one(dentmark, detector, gen, cls, seed, work, keep):
         rows.append({"band": bands[k], "found": ok, "d": td["diameter"], "h": td["height"],
                      "feature": td.get("feature", "")})
     if not keep:
-        for f in (ply, base + ".dml"):
+        for f in (ply, base + ".dml", truth, out):
             os.remove(f)
     return rows, fa, t["panel_area"], d["source"]["vertices"]
 
@@ -143,9 +145,14 @@ def main():
     ap.add_argument("--classes", default=",".join(CLASSES))
     ap.add_argument("--generators", default="own,indep")
     ap.add_argument("--work", default=None, help="keep scans and results here")
+    ap.add_argument("--reuse", action="store_true", help="detect again on the scans kept in --work")
+    ap.add_argument("--config", default=None, help="detection settings (YAML) for detect --config")
     ap.add_argument("--check", action="store_true", help="exit 1 when a class misses a target")
     ap.add_argument("-v", action="store_true", help="print each missed defect and false alarm")
+    ap.add_argument("--quick", action="store_true", help="independent doors of 0.6 x 0.5 m (for fast tests)")
     a = ap.parse_args()
+    if a.quick:
+        QUICK_PANEL[:] = ["--width", "0.6", "--height", "0.5"]
     work = a.work or tempfile.mkdtemp(prefix="eval-detect-")
     os.makedirs(work, exist_ok=True)
     ok = True
@@ -154,7 +161,8 @@ def main():
         for cls in a.classes.split(","):
             rows, fas, area, verts = [], [], 0.0, []
             for seed in range(a.first_seed, a.first_seed + a.seeds):
-                r, fa, ar, nv = run_one(a.dentmark, a.detector or a.dentmark, gen, cls, seed, work, a.work is not None)
+                r, fa, ar, nv = run_one(a.dentmark, a.detector or a.dentmark, gen, cls, seed, work, a.work is not None, a.config,
+                                         a.reuse)
                 rows += r
                 fas += fa
                 area += ar
