@@ -315,14 +315,21 @@ def scan(rng, door, args):
     d_cam = np.stack([px.ravel() / f, py.ravel() / f, np.ones(px.size)], axis=1)
     d_cam /= np.linalg.norm(d_cam, axis=1, keepdims=True)
     d = d_cam @ R_panel_sls.T  # ray directions in the panel frame
-    # Ray against the height field: t <- t - (w(t) - z(u, v)) / d_w, damped.
+    # Ray against the height field: t <- t - (w(t) - z(u, v)) / d_w, a fixed-point
+    # iteration that converges where the surface's slope along the ray is under 1; damped
+    # after six steps for the few rays left (a handle's steep walls). Converged rays stop.
     t = (centre[2] - origin[2]) / d[:, 2]
-    for it in range(14):
+    active = np.arange(len(t))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for it in range(40):
+            p = origin + d[active] * t[active, None]
+            step = (p[:, 2] - door.surface(p[:, 0], p[:, 1])) / d[active, 2]
+            t[active] -= (1.0 if it < 6 else 0.5) * step
+            active = active[np.abs(step) > 1e-10]
+            if active.size == 0:
+                break
         p = origin + d * t[:, None]
-        z = door.surface(p[:, 0], p[:, 1])
-        t = t - (0.8 if it < 10 else 1.0) * (p[:, 2] - z) / d[:, 2]
-    p = origin + d * t[:, None]
-    resid = np.abs(p[:, 2] - door.surface(p[:, 0], p[:, 1]))
+        resid = np.abs(p[:, 2] - door.surface(p[:, 0], p[:, 1]))
     valid = door.on_panel(p[:, 0], p[:, 1]) & (resid < 1e-6)
     clean = p.copy()
     # Noise along the ray, larger at grazing incidence.
