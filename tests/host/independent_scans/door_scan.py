@@ -337,17 +337,19 @@ def scan(rng, door, args):
     cos_inc = np.abs(np.sum(-d * n_est, axis=1))
     sigma = args.noise * (1.0 + 0.5 * (1.0 - cos_inc))
     t_noisy = t + rng.normal(0.0, 1.0, size=len(t)) * sigma
-    # Per-pixel dropouts.
-    valid &= rng.uniform(size=len(t)) >= args.dropout_rate
-    grid = valid.reshape(rows, cols)
-    # Mixed pixels on depth edges: a pixel with a missing 4-neighbour is pulled behind.
+    # Mixed pixels on depth edges (the panel's outline, the window): a pixel whose
+    # 4-neighbour sees no panel is pulled behind. (Before the dropouts: a pixel that
+    # returned nothing is no depth edge.)
+    grid = valid.reshape(rows, cols).copy()
     edge = np.zeros_like(grid)
     edge[1:, :] |= ~grid[:-1, :]
     edge[:-1, :] |= ~grid[1:, :]
     edge[:, 1:] |= ~grid[:, :-1]
     edge[:, :-1] |= ~grid[:, 1:]
     edge = (edge & grid).ravel()
-    mixed = edge & (rng.uniform(size=len(t)) < args.edge_artefacts)
+    # Per-pixel dropouts.
+    valid &= rng.uniform(size=len(t)) >= args.dropout_rate
+    mixed = valid & edge & (rng.uniform(size=len(t)) < args.edge_artefacts)
     t_noisy[mixed] += rng.uniform(0.0002, 0.003, size=int(mixed.sum()))
     # Flying pixels: isolated, thrown along their own ray.
     flying = valid & (rng.uniform(size=len(t)) < args.flying)
