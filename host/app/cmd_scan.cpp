@@ -6,9 +6,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <memory>
 #include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "commands.h"
 #include "dentmark/common/huge_pages.h"
@@ -60,8 +64,60 @@ struct EvalArgs {
 struct SynthArgs {
   std::string out, truth;
   sim::scan::ScanOptions options;
-  bool paper = false;
+  bool paper = false, paper_bump = false;
+  bool no_crease = false, no_handle = false, no_window = false;
+  std::vector<std::string> lines;       // --character-line Y,ANGLE,STEP,WIDTH
+  std::vector<std::string> near_lines;  // --near-lines: gaps in m, or "on"
 };
+
+// "Y,ANGLE,STEP,WIDTH": a character line through (width/2, Y x height) at ANGLE rad,
+// a step of STEP m over WIDTH m. Throws std::invalid_argument naming the field.
+sim::scan::CharacterLine parse_character_line(const std::string& text, const sim::scan::PanelShape& shape) {
+  double f[4];
+  std::size_t pos = 0;
+  static const char* names[4] = {"Y", "ANGLE", "STEP", "WIDTH"};
+  for (int k = 0; k < 4; ++k) {
+    const std::size_t end = k < 3 ? text.find(',', pos) : text.size();
+    if (end == std::string::npos)
+      throw std::invalid_argument("--character-line '" + text + "': expected Y,ANGLE,STEP,WIDTH");
+    const std::string field = text.substr(pos, end - pos);
+    char* stop = nullptr;
+    f[k] = std::strtod(field.c_str(), &stop);
+    if (field.empty() || *stop != '\0' || !std::isfinite(f[k]))
+      throw std::invalid_argument("--character-line '" + text + "': field " + names[k] + " '" + field +
+                                  "' is not a number");
+    pos = end + 1;
+  }
+  sim::scan::CharacterLine l;
+  l.point = {0.5 * shape.width, f[0] * shape.height};
+  l.angle = f[1], l.step = f[2], l.width = f[3];
+  return l;
+}
+
+// The synth options from the command line's extras; throws std::invalid_argument.
+void apply_placements(SynthArgs& a) {
+  a.options.shape.crease = !a.no_crease;
+  a.options.shape.handle = !a.no_handle;
+  a.options.shape.window = !a.no_window;
+  for (const std::string& l : a.lines)
+    a.options.shape.lines.push_back(parse_character_line(l, a.options.shape));
+  for (const std::string& g : a.near_lines) {
+    if (g == "on") {
+      a.options.near_lines.push_back(-1.0);
+      continue;
+    }
+    char* stop = nullptr;
+    const double v = std::strtod(g.c_str(), &stop);
+    if (g.empty() || *stop != '\0' || !std::isfinite(v))
+      throw std::invalid_argument("--near-lines: '" + g + "' is neither a gap in m nor 'on'");
+    a.options.near_lines.push_back(v);
+  }
+  if (a.paper_bump) {
+    // The paper's bump (§V): 9 mm wide, 11 mm high, 30 % along the door, 27.5 % up.
+    a.options.planted.push_back(
+        {{0.30 * a.options.shape.width, 0.275 * a.options.shape.height}, 0.009, 0.011});
+  }
+}
 
 // The .dml for the edge box: the defects, stamped with the job, the panel model and
 // when the scan was taken.
@@ -230,6 +286,12 @@ int run_eval(const EvalArgs& a) {
 }
 
 int run_synth(SynthArgs a) {
+  try {
+    apply_placements(a);
+  } catch (const std::invalid_argument& e) {
+    log::error(std::string("synth scan: ") + e.what());
+    return 2;
+  }
   if (a.paper) {
     // The paper's test (§V): ~32 000 points, a 9 mm wide bump 11 mm high, the handle.
     a.options.spacing = 0.0045;
@@ -322,6 +384,22 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   sc->add_option("--height", s->options.shape.height, "Panel height (m)");
   sc->add_flag("--shuffle", s->options.shuffle, "Vertices and triangles in random order");
   sc->add_flag("--paper", s->paper, "The paper's case: ~32 k points, a 9 mm x 11 mm bump and the handle");
+  sc->add_flag("--paper-bump", s->paper_bump, "Add the paper's 9 mm x 11 mm bump (at any spacing and noise)");
+  sc->add_flag("--no-crease", s->no_crease, "No sharp crease");
+  sc->add_flag("--no-handle", s->no_handle, "No handle");
+  sc->add_flag("--no-window", s->no_window, "No window opening");
+  sc->add_option("--character-line", s->lines,
+                 "Y,ANGLE,STEP,WIDTH: a smooth step of STEP m over WIDTH m through (width/2, Y x height) at "
+                 "ANGLE rad to x (repeat for several)");
+  sc->add_option("--near-lines", s->near_lines,
+                 "Gaps (m) from each character line's footprint to a defect's rim, one defect per gap and "
+                 "line; 'on' centres one on the line")
+      ->delimiter(',');
+  sc->add_option(
+        "--near-features", s->options.near_features,
+        "Gaps (m) from the handle's, crease's, border's and window's footprints to a defect's rim, one "
+        "defect per gap and feature")
+      ->delimiter(',');
   sc->callback([s] { exit_code() = run_synth(*s); });
 }
 

@@ -26,7 +26,7 @@ DetectConfig load_config(const std::string& path) {
     double* value;
     double lo, hi;
   };
-  double iterations = c.reference_iterations, threads = c.threads;
+  double iterations = c.reference_iterations, threads = c.threads, along = c.along_features ? 1.0 : 0.0;
   const std::map<std::string, Field> fields = {
       {"finest_node_size", {&c.finest_node_size, 1e-5, 1.0}},
       {"feature_angle", {&c.feature_angle, 0.0, 1.5}},
@@ -42,6 +42,7 @@ DetectConfig load_config(const std::string& path) {
       {"hole_depth", {&c.hole_depth, 1e-4, 1.0}},
       {"max_hole_diameter", {&c.max_hole_diameter, 0.0, 1.0}},
       {"threads", {&threads, 0, 1024}},
+      {"along_features", {&along, 0, 1}},
   };
   for (const auto& kv : root) {
     const std::string key = kv.first.as<std::string>();
@@ -62,6 +63,7 @@ DetectConfig load_config(const std::string& path) {
   }
   c.reference_iterations = static_cast<int>(iterations);
   c.threads = static_cast<int>(threads);
+  c.along_features = along != 0.0;
   return c;
 }
 

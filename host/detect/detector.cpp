@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "along_feature.h"
 #include "background.h"
 #include "border_zone.h"
 #include "charts.h"
@@ -498,6 +499,27 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
     for (auto k : comp.pixels) out.labels[static_cast<std::size_t>(k)] = label;
     d.id = static_cast<std::uint32_t>(is_defect ? out.defects.size() : out.features.size());
     (is_defect ? out.defects : out.features).push_back(std::move(f));
+  }
+  // --- Defects on and beside design features, out of the feature's profile along it ---
+  if (cfg.along_features && !coarse) {
+    cv::Mat design_px(rows, cols, CV_8U, cv::Scalar(0));
+    for (const Candidate& comp : comps)
+      if (!comp.pixels.empty() && reason_for_design(comp))
+        for (auto k : comp.pixels) design_px.data[k] = 255;
+    design_px |= fold_px;
+    const cv::Mat excluded = spike | hole_zone;
+    std::vector<std::vector<std::int32_t>> along_px;
+    const AlongFeatureScene along_scene{
+        map,   dev, design_px, edge_zone, excluded, not_surface, out.labels, scales, deviation.scale_sigma,
+        sigma3};
+    std::vector<Finding> along = defects_along_features(along_scene, cfg, along_px);
+    for (std::size_t i = 0; i < along.size(); ++i) {
+      const int label = static_cast<int>(out.defects.size());
+      for (auto k : along_px[i]) out.labels[static_cast<std::size_t>(k)] = label;
+      along[i].defect.id = static_cast<std::uint32_t>(label);
+      out.defects.push_back(std::move(along[i]));
+    }
+    lap("along features");
   }
   for (const HoleRegion& hr : holes) {
     Finding f = hole_finding(hr, map, ref, hole_zone, cfg.normal_patch);

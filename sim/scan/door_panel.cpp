@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <numbers>
+#include <stdexcept>
+#include <string>
 
 namespace dentmark::sim::scan {
 namespace {
@@ -12,6 +15,11 @@ constexpr double kRadiusY = 1.6;         // m, curvature across it
 constexpr double kCreaseSlope = 0.05;    // rad each side: the line's fold is 0.1 rad
 constexpr double kCreaseRound = 0.0015;  // m, rounding of the fold
 constexpr double kWindowCorner = 0.03;   // m
+
+double smootherstep(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
+}
 
 double smoothstep(double t) {
   t = std::clamp(t, 0.0, 1.0);
@@ -46,8 +54,41 @@ double DoorPanel::edge_distance(double x, double y) const {
   return std::min({x, W - x, y, H - y, window_distance(x, y)});
 }
 
+double DoorPanel::line_offset(std::size_t k, double x, double y) const {
+  const CharacterLine& l = shape_.lines.at(k);
+  return -std::sin(l.angle) * (x - l.point.x()) + std::cos(l.angle) * (y - l.point.y());
+}
+
+std::vector<std::string> DoorPanel::feature_names() const {
+  std::vector<std::string> out = {"border"};
+  if (shape_.handle) out.push_back("handle");
+  if (shape_.crease) out.push_back("crease");
+  if (shape_.window) out.push_back("window");
+  for (std::size_t k = 0; k < shape_.lines.size(); ++k) out.push_back("line" + std::to_string(k));
+  return out;
+}
+
+double DoorPanel::footprint_distance(const std::string& feature, double x, double y) const {
+  const double W = shape_.width, H = shape_.height;
+  if (feature == "border") return std::min({x, W - x, y, H - y}) - shape_.edge_radius;
+  if (feature == "window" && shape_.window) return window_distance(x, y) - shape_.edge_radius;
+  if (feature == "crease" && shape_.crease) return std::abs(y - crease_y(x)) - kCreaseRound;
+  if (feature == "handle" && shape_.handle) {
+    const Eigen::Vector2d c = handle_centre();
+    return rounded_rect_distance(x, y, c.x() - kHandleLength / 2, c.x() + kHandleLength / 2,
+                                 c.y() - kHandleWidth / 2, c.y() + kHandleWidth / 2, 0.004);
+  }
+  if (feature.rfind("line", 0) == 0) {
+    const std::size_t k = static_cast<std::size_t>(std::atoi(feature.c_str() + 4));
+    if (k < shape_.lines.size()) return std::abs(line_offset(k, x, y)) - 0.5 * shape_.lines[k].width;
+  }
+  throw std::invalid_argument("the panel has no feature '" + feature + "'");
+}
+
 double DoorPanel::feature_distance(double x, double y) const {
   double d = edge_distance(x, y);
+  for (std::size_t k = 0; k < shape_.lines.size(); ++k)
+    d = std::min(d, std::max(0.0, std::abs(line_offset(k, x, y)) - 0.5 * shape_.lines[k].width));
   if (shape_.crease) d = std::min(d, std::abs(y - crease_y(x)));
   if (shape_.handle) {
     const Eigen::Vector2d c = handle_centre();
@@ -67,6 +108,10 @@ double DoorPanel::z_nominal(double x, double y) const {
   if (shape_.crease) {
     const double t = y - crease_y(x);
     z -= kCreaseSlope * std::sqrt(t * t + kCreaseRound * kCreaseRound);
+  }
+  for (std::size_t k = 0; k < shape_.lines.size(); ++k) {
+    const CharacterLine& l = shape_.lines[k];
+    z += l.step * smootherstep(line_offset(k, x, y) / l.width + 0.5);
   }
   if (shape_.handle) {
     const Eigen::Vector2d c = handle_centre();

@@ -43,6 +43,65 @@ std::vector<PlantedDefect> place_defects(const ScanOptions& o, const DoorPanel& 
   return out;
 }
 
+// One defect of random size whose rim lies 'gap' from the footprint of 'feature' (a
+// negative gap: centred on a character line), clear of every other feature by 25 mm
+// and of the defects already placed. Centres start anywhere and are moved along the
+// footprint distance's gradient onto the wanted level (a distance field has unit slope).
+std::optional<PlantedDefect> place_beside(const ScanOptions& o, const DoorPanel& probe,
+                                          const std::string& feature, double gap,
+                                          const std::vector<PlantedDefect>& placed, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> ux(0.0, o.shape.width), uy(0.0, o.shape.height), u01(0.0, 1.0);
+  const std::vector<std::string> names = probe.feature_names();
+  const bool on_line = gap < 0.0;
+  for (int attempt = 0; attempt < 4000; ++attempt) {
+    PlantedDefect d;
+    d.diameter = o.min_diameter + (o.max_diameter - o.min_diameter) * u01(rng);
+    const double mag = o.min_depth * std::pow(o.max_depth / o.min_depth, u01(rng));
+    d.height = u01(rng) < 0.5 ? -mag : mag;
+    const double r = 0.5 * d.diameter;
+    Eigen::Vector2d c(ux(rng), uy(rng));
+    auto dist = [&](const Eigen::Vector2d& p) { return probe.footprint_distance(feature, p.x(), p.y()); };
+    double target = gap + r;
+    if (on_line) {
+      // The line's centre: the footprint's least distance, -width/2.
+      const std::size_t k = static_cast<std::size_t>(std::atoi(feature.c_str() + 4));
+      target = -0.5 * o.shape.lines.at(k).width;
+    }
+    for (int it = 0; it < 6; ++it) {
+      constexpr double e = 1e-5;
+      const Eigen::Vector2d g((dist(c + Eigen::Vector2d(e, 0)) - dist(c - Eigen::Vector2d(e, 0))) / (2 * e),
+                              (dist(c + Eigen::Vector2d(0, e)) - dist(c - Eigen::Vector2d(0, e))) / (2 * e));
+      if (!(g.norm() > 0.5)) break;
+      c += (target - dist(c)) * g / g.squaredNorm();
+    }
+    if (std::abs(dist(c) - target) > 2e-4 || !probe.inside(c.x(), c.y())) continue;
+    bool clear = true;
+    for (const std::string& other : names)
+      if (other != feature && probe.footprint_distance(other, c.x(), c.y()) < r + 0.025) clear = false;
+    for (const auto& e : placed)
+      if ((e.centre - c).norm() < 0.5 * (e.diameter + d.diameter) + 0.015) clear = false;
+    if (!clear) continue;
+    d.centre = c;
+    d.beside = feature;
+    d.gap = on_line ? -r : gap;
+    return d;
+  }
+  return std::nullopt;
+}
+
+std::vector<PlantedDefect> place_near_features(const ScanOptions& o, const DoorPanel& probe,
+                                               std::vector<PlantedDefect> placed, std::mt19937_64& rng) {
+  std::vector<std::pair<std::string, double>> jobs;
+  for (const std::string& f : probe.feature_names()) {
+    const bool line = f.rfind("line", 0) == 0;
+    for (double g : line ? o.near_lines : o.near_features) jobs.emplace_back(f, g);
+  }
+  for (const auto& [feature, gap] : jobs)
+    if (std::optional<PlantedDefect> d = place_beside(o, probe, feature, gap, placed, rng))
+      placed.push_back(*d);
+  return placed;
+}
+
 // Through-holes: clear of design features and of the dents and bumps.
 std::vector<Eigen::Vector3d> place_holes(const ScanOptions& o, const DoorPanel& panel, std::mt19937_64& rng) {
   std::vector<Eigen::Vector3d> out;  // x, y, diameter
@@ -78,6 +137,13 @@ void check_options(const ScanOptions& o) {
   if (!(o.rim >= 0.0 && o.rim <= 1.0)) throw std::invalid_argument("rim must be in [0, 1]");
   if (!(o.outlier_fraction >= 0.0 && o.outlier_fraction <= 0.1))
     throw std::invalid_argument("outlier fraction must be in [0, 0.1]");
+  for (double g : o.near_features)
+    if (!(g >= 0.0 && g < 0.2)) throw std::invalid_argument("gaps beside features must be in [0, 0.2) m");
+  for (double g : o.near_lines)
+    if (!(g < 0.2)) throw std::invalid_argument("gaps beside character lines must be under 0.2 m");
+  for (const CharacterLine& l : o.shape.lines)
+    if (!(std::abs(l.step) <= 0.02 && l.width > 0.001 && l.width < 0.1 && std::isfinite(l.angle)))
+      throw std::invalid_argument("a character line's step must be within 20 mm, its width in (1, 100) mm");
   if (o.shape.width * o.shape.height / (o.spacing * o.spacing) > 6e7)
     throw std::invalid_argument("scan would exceed 60 M points; raise the spacing");
 }
@@ -294,6 +360,8 @@ std::vector<TruthDefect> truth_defects(const DoorPanel& panel, const std::vector
     // The defect is planted along the panel's z; its depth is measured along the
     // surface normal (as a gauge held normal to the panel reads it).
     t.height = d.height * n_panel.z();
+    t.beside = d.beside;
+    t.gap = d.gap;
     out.push_back(t);
   }
   for (const Eigen::Vector3d& h : holes) {
@@ -328,6 +396,14 @@ std::vector<TruthFeature> truth_features(const PanelShape& shape, const DoorPane
     const Eigen::Vector2d hc = panel.handle_centre();
     feature_line(
         "handle", 0.03, [&](double s) { return Eigen::Vector2d(hc.x() - 0.05 + s, hc.y()); }, 0.1);
+  }
+  for (std::size_t k = 0; k < shape.lines.size(); ++k) {
+    const CharacterLine& l = shape.lines[k];
+    const Eigen::Vector2d dir(std::cos(l.angle), std::sin(l.angle));
+    const double len = 2.0 * std::hypot(W, H);
+    feature_line(
+        "line" + std::to_string(k), 0.5 * l.width + 0.01,
+        [&](double s) -> Eigen::Vector2d { return l.point + (s - 0.5 * len) * dir; }, len);
   }
   if (shape.crease)
     feature_line(
@@ -366,7 +442,7 @@ SynthScan synthesize_scan(const ScanOptions& o) {
   // sensor's tilt, the dropouts, the shuffle (the range noise has per-row seeds).
   std::mt19937_64 rng(splitmix(o.seed));
   const DoorPanel probe(o.shape, {});
-  const DoorPanel panel(o.shape, place_defects(o, probe, rng));
+  const DoorPanel panel(o.shape, place_near_features(o, probe, place_defects(o, probe, rng), rng));
   const std::vector<Eigen::Vector3d> holes = place_holes(o, panel, rng);
   const SensorGrid sensor = place_sensor(o, panel, rng);
   std::vector<Eigen::Vector3d> drops;  // discs of missing data: x, y, r

@@ -36,6 +36,11 @@ TruthDefect read_defect(const nlohmann::json& j, const std::string& where) {
   d.normal = n.normalized();
   d.diameter = number(j, "diameter", where);
   d.height = number(j, "height", where);
+  if (j.contains("feature")) {
+    if (!j["feature"].is_string()) throw TruthFileError(where + ".feature: expected a string");
+    d.beside = j["feature"].get<std::string>();
+    d.gap = number(j, "gap", where);
+  }
   return d;
 }
 
@@ -135,13 +140,15 @@ nlohmann::json truth_to_json(const TruthFile& truth) {
   }
   j["defects"] = nlohmann::json::array();
   int id = 1;
-  for (const TruthDefect& d : truth.defects)
+  for (const TruthDefect& d : truth.defects) {
     j["defects"].push_back({{"id", id++},
                             {"class", d.defect_class},
                             {"position", vec(d.position)},
                             {"normal", vec(d.normal)},
                             {"diameter", d.diameter},
                             {"height", d.height}});
+    if (!d.beside.empty()) j["defects"].back()["feature"] = d.beside, j["defects"].back()["gap"] = d.gap;
+  }
   j["features"] = nlohmann::json::array();
   for (const TruthFeature& f : truth.features) {
     nlohmann::json points = nlohmann::json::array();

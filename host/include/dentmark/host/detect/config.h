@@ -32,6 +32,11 @@ struct DetectConfig {
   double hole_depth = 0.003;
   double max_hole_diameter = 0.02;
   int threads = 0;  // 0: all cores
+  // Look for dents and bumps on and beside design features as deviations from the
+  // feature's own profile along it (along_feature.h). Off by default: on the scans of
+  // tests/host/independent_scans it finds more of them but raises false alarms where
+  // the reference leaves blocks and streaks along a smooth step (docs/detection.md §12).
+  bool along_features = false;
 };
 
 // Reads a YAML file of the fields above (all optional). Throws std::runtime_error

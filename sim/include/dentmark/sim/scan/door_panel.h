@@ -2,7 +2,8 @@
 // A door-like panel as a height field z = f(x, y) in its own frame 'panel' (x along
 // the door, y up, z out towards the viewer; metres): double curvature, a character line
 // (crease), a handle 100 x 18 mm protruding 18 mm, a window opening, rounded borders,
-// and planted dents and bumps with a cos² profile.
+// optional smooth character lines (steps) in any direction, and planted dents and bumps
+// with a cos² profile.
 
 #include <Eigen/Core>
 #include <string>
@@ -17,6 +18,22 @@ struct PlantedDefect {
   // The metal it pushed aside: a ring from its edge out to twice its radius, of the
   // opposite sign, rim x |height| at its crest (0: none). Truth is the core's.
   double rim = 0.0;
+  // Where it was placed on purpose: the feature (handle, crease, border, window, lineN)
+  // and the gap from its rim to that feature's footprint (m; negative: on it). Empty
+  // for defects placed at random.
+  std::string beside = {};
+  double gap = 0.0;
+};
+
+// A character line: a smooth (quintic) step of 'step' metres across 'width', along the
+// straight line through 'point' at 'angle' to the panel's x axis; the side its normal
+// (-sin, cos) points to is raised by 'step' (negative: lowered). Its footprint is the
+// step's width.
+struct CharacterLine {
+  Eigen::Vector2d point = {0.5, 0.3};  // m, panel x, y
+  double angle = 0.0;                  // rad
+  double step = 0.003;                 // m, signed
+  double width = 0.012;                // m
 };
 
 struct PanelShape {
@@ -26,6 +43,7 @@ struct PanelShape {
   bool crease = true;
   bool window = true;
   double edge_radius = 0.006;  // rounded border (m)
+  std::vector<CharacterLine> lines;
 };
 
 class DoorPanel {
@@ -42,6 +60,14 @@ class DoorPanel {
   double edge_distance(double x, double y) const;
   // Distance to the nearest design feature (crease line, handle, borders, window).
   double feature_distance(double x, double y) const;
+  // Signed distance from a feature's footprint (negative inside it), m. Features:
+  // handle, crease, border, window, and "line0", "line1", ... for shape().lines.
+  // Throws std::invalid_argument for a feature the panel does not have.
+  double footprint_distance(const std::string& feature, double x, double y) const;
+  // The panel's features by name (those footprint_distance knows).
+  std::vector<std::string> feature_names() const;
+  // Signed offset of (x, y) across character line k (along its normal), m.
+  double line_offset(std::size_t k, double x, double y) const;
   // Unit normal of the nominal surface (panel frame).
   Eigen::Vector3d normal(double x, double y) const;
 

@@ -31,6 +31,13 @@ struct ScanOptions {
   double standoff = 0.9;                                        // m, sensor to panel centre
   PanelShape shape;
   std::vector<PlantedDefect> planted;  // explicit defects (added to the random ones)
+  // Defects placed beside features: for each gap (m, from the defect's rim to the
+  // feature's footprint) one random defect beside every character line (near_lines; a
+  // negative gap centres it on the line) or beside every other feature: handle, crease,
+  // border, window (near_features). Sizes as the random ones; clear of other features by
+  // 25 mm.
+  std::vector<double> near_lines;
+  std::vector<double> near_features;
 };
 
 struct TruthDefect {
@@ -39,6 +46,9 @@ struct TruthDefect {
   Eigen::Vector3d normal;    // sls, unit, towards the sensor
   double diameter = 0.0;     // m
   double height = 0.0;       // m, signed, along the surface normal (0 for a hole)
+  // Placed beside a feature on purpose (PlantedDefect::beside, ::gap); empty otherwise.
+  std::string beside = {};
+  double gap = 0.0;  // m, rim to the feature's footprint; negative: on it
 };
 
 // A design feature as sample points along it (sls) and a radius around them.
