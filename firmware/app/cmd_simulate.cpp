@@ -115,6 +115,13 @@ void print_table(const std::vector<simulation::ScenarioResult>& results) {
                   x.scanner_calibration_rotation * 1e3);
     std::printf("\n");
   }
+  for (const auto& r : results)
+    if (r.fault_time >= 0.0)
+      std::printf(
+          "fault at t = %.3f s (%c%+.0f): valve closed after %.1f ms, robot still after %.1f ms, "
+          "every defect reported after %.1f ms\n",
+          r.fault_time, r.options.position, r.options.yaw * 180.0 / std::numbers::pi,
+          r.valve_closed_after * 1e3, r.robot_still_after * 1e3, r.reported_after * 1e3);
 }
 
 nlohmann::json to_json(const simulation::ScenarioResult& r) {
@@ -141,6 +148,10 @@ nlohmann::json to_json(const simulation::ScenarioResult& r) {
           {"robot_calibration_rotation", r.robot_calibration_rotation},
           {"scanner_calibration_error", r.scanner_calibration_error},
           {"scanner_calibration_rotation", r.scanner_calibration_rotation},
+          {"fault_time", r.fault_time},
+          {"valve_closed_after", r.valve_closed_after},
+          {"robot_still_after", r.robot_still_after},
+          {"reported_after", r.reported_after},
           {"marks", marks}};
 }
 

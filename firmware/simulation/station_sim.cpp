@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <random>
@@ -382,16 +383,19 @@ class DoorCameras {
   clock::Clock& clock_;
 };
 
-// Ends the line's wait when the scenario is over.
+// Starts the line once the list is out, and ends its wait when the scenario is over.
 struct LineStop {
   std::mutex mutex;
   std::condition_variable changed;
+  bool started = false;
   bool done = false;
 };
 
 // Waits on the twin's clock until t; false when the scenario ended first.
 bool line_wait_until(clock::Clock& clock, LineStop& stop, double t) {
   std::unique_lock lock(stop.mutex);
+  while (!stop.done && !stop.started)
+    clock.wait_until(lock, stop.changed, std::numeric_limits<double>::infinity());
   while (!stop.done && clock.now() < t) clock.wait_until(lock, stop.changed, t);
   return !stop.done;
 }
@@ -448,8 +452,15 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   // latency into millimetres of line travel).
   clock::LockstepClock clock(0.0);  // held until the list is out
   std::atomic<bool> held{true};
+  LineStop line_stop;
   const auto start_time = [&] {
-    if (held.exchange(false)) clock.resume();
+    if (!held.exchange(false)) return;
+    {
+      std::lock_guard lock(line_stop.mutex);
+      line_stop.started = true;
+    }
+    clock.notify_all(line_stop.changed);
+    clock.resume();
   };
   std::optional<SelfCalibrationResult> self;
   if (!sim.self_calibration_cache.empty())
@@ -502,7 +513,6 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   daemon::EdgeDaemon edge(std::move(d), clock);
   edge.start();
   auto& gpio = dynamic_cast<hal::SimGpio&>(edge.gpio());
-  LineStop line_stop;
   clock::ParticipantThread line(
       clock, [&] { run_line(sim, cell, board, clock, line_stop, gpio, *robot_sim, cameras); });
 

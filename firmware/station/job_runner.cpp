@@ -92,10 +92,14 @@ hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout) {
   // ends the job as a robot fault, a wait past 'timeout' as a timeout.
   return robot_.wait_done(sequence, timeout, config_.poll_period, clock_, [this](const hal::RobotStatus& s) {
     check_interlocks();
-    if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
-      throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) + ": " +
-                                                  robot_link::fault_names(s.faults)};
+    check_robot(s);
   });
+}
+
+void JobRunner::check_robot(const hal::RobotStatus& s) {
+  if (s.state == robot_link::State::kFault || s.state == robot_link::State::kStopped)
+    throw JobAbort{MarkReason::kRobotFault, "robot " + std::string(robot_link::to_string(s.state)) + ": " +
+                                                robot_link::fault_names(s.faults)};
 }
 
 protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredictor& since_scan) {
@@ -141,7 +145,13 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   const double duration = config_.planner.spray_duration;
   events_->spraying(target.id);
   const std::uint16_t seq = robot_.spray(duration);
-  if (!safety_.spray(duration)) {
+  // A robot that faults or drops off the link mid-spray closes the valve at once, not
+  // at the pulse's end.
+  const auto watch_robot = [this] {
+    check_interlocks();
+    check_robot(robot_.status());
+  };
+  if (!safety_.spray(duration, watch_robot)) {
     // The supervisor latched safe during the pulse: say why (the e-stop, mostly).
     if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop during the spray"};
     throw JobAbort{MarkReason::kAborted, "sprayer valve refused: safety latched"};

@@ -11,14 +11,20 @@ bool SupervisedSafety::arm() {
   return !supervisor_.latched() || supervisor_.reset();
 }
 
-bool SupervisedSafety::spray(double duration) {
+bool SupervisedSafety::spray(double duration, const std::function<void()>& watch) {
   if (!supervisor_.pulse(duration)) return false;
   // The supervisor closes the valve at the end of the pulse; keep the loop alive
-  // (watchdog) while it is open.
+  // (watchdog) and watch the robot while it is open.
   const double end = clock_.now() + duration;
-  while (clock_.now() < end) {
-    supervisor_.kick();
-    clock_.sleep_for(std::min(0.01, end - clock_.now()));
+  try {
+    while (clock_.now() < end) {
+      supervisor_.kick();
+      if (watch) watch();
+      clock_.sleep_for(std::min(0.01, end - clock_.now()));
+    }
+  } catch (...) {
+    valve_off();
+    throw;
   }
   return !supervisor_.latched();
 }

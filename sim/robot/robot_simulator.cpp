@@ -384,7 +384,7 @@ void RobotSimulator::step(double now) {
     if (now - stop_start_ >= t_stop) {
       speed_ = 0.0;
       stopping_ = false;
-      record(now, true);
+      record(stop_start_ + t_stop, true);  // when it came to rest, whenever this step runs
     } else {
       record(now, false);
     }
@@ -407,7 +407,7 @@ void RobotSimulator::step(double now) {
       noise_ = noise_to_;
       speed_ = 0.0;
       state_ = rl::State::kIdle;
-      record(now, true);
+      record(move_start_ + profile_.duration(), true);
     } else {
       record(now, false);
     }

@@ -86,10 +86,19 @@ class MockSafety final : public SafetyIo {
  public:
   explicit MockSafety(clock::Clock& clock) : clock_(clock) {}
   bool estop_active() override { return estop_after >= 0 && clock_.now() >= estop_after; }
-  bool spray(double duration) override {
+  bool spray(double duration, const std::function<void()>& watch) override {
     valve_open = true;
     pulses++;
-    clock_.sleep_for(duration);
+    const double end = clock_.now() + duration;
+    try {
+      while (clock_.now() < end) {
+        if (watch) watch();
+        clock_.sleep_for(std::min(0.01, end - clock_.now()));
+      }
+    } catch (...) {
+      valve_open = false;
+      throw;
+    }
     valve_open = false;
     return true;
   }

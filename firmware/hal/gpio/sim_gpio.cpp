@@ -50,9 +50,10 @@ class SimInputLine final : public InputLine {
     std::unique_lock<std::mutex> lock(chip_.mutex_);
     // On the chip's clock: in the twin the e-stop edge is seen at the simulated instant
     // it is driven.
-    const double deadline = chip_.clock_.now() + std::max(0.0, timeout);
-    while (line_.events.empty() && chip_.clock_.now() < deadline)
-      chip_.clock_.wait_until(lock, chip_.changed_, deadline);
+    // One wait: it may end early (callers poll), and on a manual clock it ends after the
+    // timeout in real time instead of waiting for time that nobody moves.
+    if (line_.events.empty())
+      chip_.clock_.wait_until(lock, chip_.changed_, chip_.clock_.now() + std::max(0.0, timeout));
     if (line_.events.empty()) return std::nullopt;
     const LineEvent e = line_.events.front();
     line_.events.pop_front();

@@ -34,8 +34,10 @@ class SafetyIo {
   // Called every turn of the control loop (software watchdog).
   virtual void kick() {}
   // Opens the sprayer valve for 'duration' seconds of clock time, then closes it;
-  // false when the valve was refused (latched safe).
-  virtual bool spray(double duration) = 0;
+  // false when the valve was refused (latched safe). 'watch' runs every turn of the
+  // control loop while the valve is open; when it throws, the valve closes at once and
+  // the exception goes on.
+  virtual bool spray(double duration, const std::function<void()>& watch) = 0;
   // Closes the valve (idempotent, never throws).
   virtual void valve_off() noexcept = 0;
 };
@@ -98,6 +100,8 @@ class JobRunner {
   protocol::Mark mark_one(const Target& target, const plan::MotionPredictor& since_scan);
   hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time);
   // Robot::wait_done with the interlocks checked in every poll.
+  // Throws JobAbort (robot fault) when the robot is faulted or stopped.
+  static void check_robot(const hal::RobotStatus& s);
   hal::RobotStatus wait_robot(std::uint16_t sequence, double timeout);
   Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
                                 double t) const;

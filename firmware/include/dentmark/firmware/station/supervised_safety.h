@@ -16,7 +16,7 @@ class SupervisedSafety final : public SafetyIo {
   bool estop_pressed() override { return supervisor_.estop_pressed(); }
   bool arm() override;
   void kick() override { supervisor_.kick(); }
-  bool spray(double duration) override;
+  bool spray(double duration, const std::function<void()>& watch) override;
   void valve_off() noexcept override { supervisor_.close_valve(); }
 
  private:
