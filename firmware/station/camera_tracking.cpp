@@ -24,7 +24,7 @@ struct CameraTracking::Feed {
 
 CameraTracking::CameraTracking(hal::Camera& left, hal::Camera& right, clock::Clock& clock,
                                CameraTrackingConfig config)
-    : stereo_(left, right, config.max_skew), clock_(clock), config_(std::move(config)) {}
+    : stereo_(left, right, config.max_skew, clock), clock_(clock), config_(std::move(config)) {}
 
 CameraTracking::~CameraTracking() {
   stop();

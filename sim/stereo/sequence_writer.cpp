@@ -1,7 +1,5 @@
 #include "dentmark/sim/stereo/sequence_writer.h"
 
-#include <unistd.h>
-
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -9,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
 #include "dentmark/common/stereo_index.h"
 #include "dentmark/sim/stereo/panel_motion.h"
@@ -132,27 +131,10 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
 
 void write_sequence(const SequenceOptions& options, const fs::path& dir) {
   check_options(options);
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec) || !fs::is_empty(dir, ec))
-      throw SequenceError(dir.string() + ": exists and is not an empty directory");
-    fs::remove(dir, ec);
-  }
-  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
-  if (!fs::is_directory(parent, ec)) throw SequenceError(parent.string() + ": no such directory");
-  // A whole folder, so not files::write_atomically: rendered into a sibling, then renamed.
-  const fs::path tmp = parent / (dir.filename().string() + ".partial-" + std::to_string(::getpid()));
-  fs::remove_all(tmp, ec);
   try {
-    fs::create_directories(tmp);
-    render_into(options, tmp);
-    fs::rename(tmp, dir);
-  } catch (const fs::filesystem_error& e) {
-    fs::remove_all(tmp, ec);
+    files::write_directory_atomically(dir, [&](const fs::path& tmp) { render_into(options, tmp); });
+  } catch (const files::FileError& e) {
     throw SequenceError(e.what());
-  } catch (...) {
-    fs::remove_all(tmp, ec);
-    throw;
   }
 }
 

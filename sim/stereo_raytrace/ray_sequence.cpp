@@ -1,7 +1,5 @@
 #include "dentmark/sim/stereo_raytrace/ray_sequence.h"
 
-#include <unistd.h>
-
 #include <Eigen/Core>
 #include <cmath>
 #include <fstream>
@@ -11,6 +9,7 @@
 #include <random>
 #include <sstream>
 
+#include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
 #include "dentmark/common/stereo_index.h"
 #include "dentmark/sim/stereo_raytrace/conveyor.h"
@@ -197,26 +196,10 @@ std::string describe(const RaySequenceOptions& o) {
 
 void write_ray_sequence(const RaySequenceOptions& options, const fs::path& dir) {
   check(options);
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec) || !fs::is_empty(dir, ec))
-      throw RaySequenceError(dir.string() + ": exists and is not an empty directory");
-    fs::remove(dir, ec);
-  }
-  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
-  if (!fs::is_directory(parent, ec)) throw RaySequenceError(parent.string() + ": no such directory");
-  const fs::path tmp = parent / (dir.filename().string() + ".partial-" + std::to_string(::getpid()));
-  fs::remove_all(tmp, ec);
   try {
-    fs::create_directories(tmp);
-    render_into(options, tmp);
-    fs::rename(tmp, dir);
-  } catch (const fs::filesystem_error& e) {
-    fs::remove_all(tmp, ec);
+    files::write_directory_atomically(dir, [&](const fs::path& tmp) { render_into(options, tmp); });
+  } catch (const files::FileError& e) {
     throw RaySequenceError(e.what());
-  } catch (...) {
-    fs::remove_all(tmp, ec);
-    throw;
   }
 }
 

@@ -192,7 +192,7 @@ TEST_F(ReplayFolder, ReplaysOneSideAtItsRecordedPace) {
   clock::SimClock c(0.0, 100.0);
   ReplayCamera left(dir, StereoSide::kLeft, c), right(dir, StereoSide::kRight, c);
   EXPECT_EQ(left.size(), cv::Size(32, 24));
-  StereoCamera stereo(left, right, 0.002);
+  StereoCamera stereo(left, right, 0.002, c);
   stereo.start();
   for (int k = 0; k < 3; ++k) {
     const auto p = stereo.grab_pair(1.0);
@@ -234,7 +234,7 @@ TEST(SimCamera, StereoPairFromTwoSimulatedSensorsWithSkew) {
   const auto render = [&](double t) { return cv::Mat(8, 8, CV_8UC1, cv::Scalar(value(t))); };
   SimCamera left("sim:camL", {8, 8}, 1.0 / 30.0, render, c, 0.0, 20);
   SimCamera right("sim:camR", {8, 8}, 1.0 / 30.0, render, c, 0.0012, 20);
-  StereoCamera stereo(left, right, 0.002);
+  StereoCamera stereo(left, right, 0.002, c);
   stereo.start();
   int n = 0;
   while (auto p = stereo.grab_pair(1.0)) {
@@ -254,7 +254,7 @@ TEST(SimCamera, SensorsOutOfSyncGiveNoPairsButCounts) {
   const auto render = [](double) { return cv::Mat(8, 8, CV_8UC1, cv::Scalar(0)); };
   SimCamera left("sim:camL", {8, 8}, 0.05, render, c, 0.0, 10);
   SimCamera right("sim:camR", {8, 8}, 0.05, render, c, 0.01, 10);  // 10 ms apart
-  StereoCamera stereo(left, right, 0.002);
+  StereoCamera stereo(left, right, 0.002, c);
   stereo.start();
   EXPECT_FALSE(stereo.grab_pair(2.0).has_value());
   EXPECT_EQ(stereo.counters().pairs, 0);

@@ -23,10 +23,13 @@ inline std::filesystem::path sequence_cache() {
 inline std::filesystem::path cached(const std::string& name, const std::string& key,
                                     const std::function<void(const std::filesystem::path&)>& render) {
   const auto dir = sequence_cache() / (name + "-" + std::to_string(std::hash<std::string>{}(key)));
-  if (!std::filesystem::exists(dir / "truth.csv")) {
-    std::filesystem::create_directories(sequence_cache());
-    std::filesystem::remove_all(dir);
-    render(dir);
+  if (std::filesystem::exists(dir / "truth.csv")) return dir;
+  std::filesystem::create_directories(sequence_cache());
+  try {
+    render(dir);  // into a sibling folder, renamed into place when whole
+  } catch (const std::exception&) {
+    // Another test process (ctest -j) rendered the same sequence first: use its copy.
+    if (!std::filesystem::exists(dir / "truth.csv")) throw;
   }
   return dir;
 }

@@ -88,8 +88,8 @@ std::optional<StereoPair> StereoPairing::pop() {
   return p;
 }
 
-StereoCamera::StereoCamera(Camera& left, Camera& right, double max_skew)
-    : left_(left), right_(right), pairing_(max_skew) {}
+StereoCamera::StereoCamera(Camera& left, Camera& right, double max_skew, clock::Clock& clock)
+    : left_(left), right_(right), clock_(clock), pairing_(max_skew) {}
 
 void StereoCamera::start() {
   left_.start();
@@ -102,11 +102,10 @@ void StereoCamera::stop() {
 }
 
 std::optional<StereoPair> StereoCamera::grab_pair(double timeout) {
-  using clock = std::chrono::steady_clock;
-  const auto end = clock::now() + std::chrono::duration<double>(std::max(0.0, timeout));
+  const double end = clock_.now() + std::max(0.0, timeout);
   for (;;) {
     if (auto p = pairing_.pop()) return p;
-    const double left_s = std::chrono::duration<double>(end - clock::now()).count();
+    const double left_s = end - clock_.now();
     if (left_s <= 0.0) return std::nullopt;
     // Read the side that lags; a short slice so the other side is not starved.
     const bool take_left = pairing_.newest_left() <= pairing_.newest_right();

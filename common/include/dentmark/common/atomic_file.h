@@ -33,6 +33,13 @@ void write_atomically(const std::filesystem::path& path, std::string_view text);
 void write_atomically_with(const std::filesystem::path& path,
                            const std::function<void(const std::filesystem::path& tmp)>& write);
 
+// A whole folder written at once (a recorded sequence): 'fill' writes into a fresh
+// sibling folder it is given, which is then renamed to 'dir'. 'dir' may exist only as
+// an empty folder. Throws FileError naming the folder; an exception from 'fill' removes
+// the sibling and passes on unchanged.
+void write_directory_atomically(const std::filesystem::path& dir,
+                                const std::function<void(const std::filesystem::path& tmp)>& fill);
+
 // The whole file; throws FileError naming the file when it cannot be read.
 std::string read_all(const std::filesystem::path& path);
 

@@ -7,6 +7,7 @@
 #include <deque>
 #include <optional>
 
+#include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/hal/camera/camera.h"
 
 namespace dentmark::hal {
@@ -51,16 +52,19 @@ class StereoPairing {
 // Two cameras and a pairing: grab_pair() reads whichever side lags until a pair forms.
 class StereoCamera {
  public:
-  StereoCamera(Camera& left, Camera& right, double max_skew);
+  // 'clock' is the cameras' clock: the timeout runs on it (in the twin, simulated time).
+  StereoCamera(Camera& left, Camera& right, double max_skew, clock::Clock& clock);
   void start();
   void stop();
-  // The next pair within 'timeout' real seconds, std::nullopt on timeout or when a side is exhausted.
+  // The next pair within 'timeout' seconds of the clock, std::nullopt on timeout or when a
+  // side is exhausted.
   std::optional<StereoPair> grab_pair(double timeout);
   const PairingCounters& counters() const { return pairing_.counters(); }
 
  private:
   Camera& left_;
   Camera& right_;
+  clock::Clock& clock_;
   StereoPairing pairing_;
 };
 
