@@ -436,6 +436,48 @@ void run_line(const SimulationOptions& sim, const Workcell& cell, const board::B
   }
 }
 
+// The station's calibration against the truth: what the self-calibration measured, or
+// the errors drawn for the scenario.
+void note_calibration(ScenarioResult& result, const Workcell& cell,
+                      const std::optional<SelfCalibrationResult>& self) {
+  const auto rotation = [](const Transform& a, const Transform& b) {
+    return Eigen::AngleAxisd((a.inverse() * b).linear()).angle();
+  };
+  result.self_calibrated = self.has_value();
+  if (self) {
+    result.robot_calibration_error = self->robot_translation_error;
+    result.robot_calibration_rotation = self->robot_rotation_error;
+    result.scanner_calibration_error = self->scanner_translation_error;
+    result.scanner_calibration_rotation = self->scanner_rotation_error;
+    return;
+  }
+  result.robot_calibration_error =
+      (cell.T_base_camL_est.translation() - cell.T_base_camL_true.translation()).norm();
+  result.robot_calibration_rotation = rotation(cell.T_base_camL_est, cell.T_base_camL_true);
+  result.scanner_calibration_error =
+      (cell.T_camL_sls_est.translation() - cell.T_camL_sls_true.translation()).norm();
+  result.scanner_calibration_rotation = rotation(cell.T_camL_sls_est, cell.T_camL_sls_true);
+}
+
+// The valve line as the simulated GPIO recorded it.
+void note_valve(ScenarioResult& result, const hal::SimGpio& gpio, const std::string& valve) {
+  result.valve_open_at_end = gpio.level(valve);
+  for (const hal::EdgeRecord& e : gpio.edges())
+    if (e.line == valve && e.active) ++result.valve_pulses;
+}
+
+// The host's reports, in the list's defect order, on the twin's clock.
+void take_reports(ScenarioResult& result, const protocol::DefectList& list,
+                  const protocol::JobOutcome& outcome) {
+  result.report.job_id = list.job_id;
+  for (const protocol::Defect& def : list.defects)
+    if (const auto it = outcome.marks.find(def.id); it != outcome.marks.end()) {
+      protocol::Mark m = it->second;
+      m.time -= kEpoch;
+      result.report.marks.push_back(m);
+    }
+}
+
 }  // namespace
 
 ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
@@ -448,8 +490,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
 
   // Time stands still from the start while the station is set up and the list goes out:
   // the scan is at t = 0 exactly, the cameras take their first frame then, and the list
-  // arrives then (a fast clock would otherwise turn milliseconds of setup and loopback
-  // latency into millimetres of line travel).
+  // arrives then.
   clock::LockstepClock clock(0.0);  // held until the list is out
   std::atomic<bool> held{true};
   LineStop line_stop;
@@ -518,23 +559,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
 
   ScenarioResult result;
   result.options = scenario;
-  const auto rotation = [](const Transform& a, const Transform& b) {
-    return Eigen::AngleAxisd((a.inverse() * b).linear()).angle();
-  };
-  result.self_calibrated = self.has_value();
-  if (self) {
-    result.robot_calibration_error = self->robot_translation_error;
-    result.robot_calibration_rotation = self->robot_rotation_error;
-    result.scanner_calibration_error = self->scanner_translation_error;
-    result.scanner_calibration_rotation = self->scanner_rotation_error;
-  } else {
-    result.robot_calibration_error =
-        (cell.T_base_camL_est.translation() - cell.T_base_camL_true.translation()).norm();
-    result.robot_calibration_rotation = rotation(cell.T_base_camL_est, cell.T_base_camL_true);
-    result.scanner_calibration_error =
-        (cell.T_camL_sls_est.translation() - cell.T_camL_sls_true.translation()).norm();
-    result.scanner_calibration_rotation = rotation(cell.T_camL_sls_est, cell.T_camL_sls_true);
-  }
+  note_calibration(result, cell, self);
   result.defects_sent = static_cast<int>(list.defects.size());
   const auto finish_run = [&] {
     start_time();
@@ -568,16 +593,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     throw;
   }
   finish_run();
-  result.valve_open_at_end = gpio.level(board.gpio.sprayer_valve.name);
-  for (const hal::EdgeRecord& e : gpio.edges())
-    if (e.line == board.gpio.sprayer_valve.name && e.active) ++result.valve_pulses;
-  result.report.job_id = list.job_id;
-  for (const protocol::Defect& def : list.defects)
-    if (const auto it = outcome.marks.find(def.id); it != outcome.marks.end()) {
-      protocol::Mark m = it->second;
-      m.time -= kEpoch;  // back on the twin's clock
-      result.report.marks.push_back(m);
-    }
+  note_valve(result, gpio, board.gpio.sprayer_valve.name);
+  take_reports(result, list, outcome);
   score(result, cell, list, truth, robot_sim->sprays(), scenario.standoff);
   if (!sim.faults.empty()) {
     double first = sim.faults.front().after;
