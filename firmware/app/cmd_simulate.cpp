@@ -46,6 +46,7 @@ struct SimulateOptions {
   int port = 0;
   std::vector<std::string> faults;
   bool next_job = false;
+  double frame_time = 0.020;
   bool self_calibrate = false;
   std::string calibration_cache;
   int jobs = 0;  // scenarios run at once; 0: one per core, at most 4
@@ -281,6 +282,7 @@ int run_simulate(const SimulateOptions& opt) {
   sim.serve = opt.serve;
   sim.faults = faults;
   sim.next_job = opt.next_job;
+  sim.frame_processing_time = opt.frame_time;
   sim.serve_port = opt.port;
   if (opt.self_calibrate)
     sim.self_calibration_cache =
@@ -368,6 +370,10 @@ void register_simulate(CLI::App& app) {
       "--fault", opt->faults,
       "Inject a fault KIND@SECONDS after marking starts: estop, robot-link, robot-blip, robot-fault, "
       "camera, tracking (repeatable)");
+  cmd->add_option("--frame-time", opt->frame_time,
+                  "Seconds of simulated time the target board takes to track one stereo frame")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   cmd->add_flag("--next-job", opt->next_job,
                 "After the job: clear the faults, scan the door again where it then is and send it as the "
                 "next job (scored like the first)");

@@ -645,6 +645,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     if (!ended_held.exchange(true)) clock.pause();
   };
   d.tracking.grab_timeout = 1.0;
+  d.tracking.frame_processing_time = sim.frame_processing_time;
   d.unix_time = [&clock] { return kEpoch + clock.now(); };
   if (sim.truth_motion)
     d.tracking_override = [&](const station::StationCalibration&) {

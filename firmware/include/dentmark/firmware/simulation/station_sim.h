@@ -113,6 +113,11 @@ struct SimulationOptions {
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
   bool truth_motion = false;
+  // The target board's time to track one stereo frame, charged on the twin's clock
+  // (CameraTrackingConfig::frame_processing_time): each estimate comes out this long
+  // after the tracker took its frame up. 20 ms: 9 times the 2.2 ms one x86 core takes
+  // for a 1280x1024 pair (docs/tracking.md), a Cortex-A53-class core's share.
+  double frame_processing_time = 0.020;
   // Faults injected while the station marks (dentmark-edge simulate --fault KIND@T).
   std::vector<Fault> faults;
   std::string board_file;  // the twin's board (empty: boards/sim/twin/board.yaml of this source tree)
