@@ -20,7 +20,7 @@ std::vector<fs::path> places() {
   std::vector<fs::path> out;
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) out.push_back(exe.parent_path() / ".." / "lib" / "dentmark-edge" / "dentmark-charuco.so");
+  if (!ec) out.push_back(exe.parent_path() / ".." / DENTMARK_CHARUCO_LIBDIR / "dentmark-charuco.so");
   out.emplace_back(DENTMARK_CHARUCO_BUILD_PATH);
   return out;
 }

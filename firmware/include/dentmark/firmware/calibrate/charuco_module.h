@@ -30,8 +30,8 @@ struct CharucoModule {
 inline constexpr const char* kCharucoModuleSymbol = "dentmark_charuco_module";
 
 // The module, loaded once: from $DENTMARK_CHARUCO_MODULE when set, else installed
-// beside the program (<program folder>/../lib/dentmark-edge/dentmark-charuco.so),
-// else from the build tree. Throws CalibrateError naming each place tried and why it
+// beside the program (<program folder>/../lib/<multiarch>/dentmark-edge/
+// dentmark-charuco.so), else from the build tree. Throws CalibrateError naming each place tried and why it
 // failed, and the package that installs it.
 const CharucoModule& charuco_module();
 
