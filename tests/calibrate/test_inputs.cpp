@@ -98,7 +98,7 @@ TEST(ImagePairs, RefusesImagesOfDifferentSizes) {
   cv::imwrite((d.path() / "right04.png").string(), cv::Mat(480, 640, CV_8UC1, cv::Scalar(0)));
   touch(d.path() / "left05.png", "not an image");
   EXPECT_EQ(error_of([&] { calibrate_stereo_images(d.path(), t); }),
-            (d.path() / "left05.png").string() + ": not a readable image");
+            (d.path() / "left05.png").string() + ": neither a PNG nor a JPEG file (by its first bytes)");
 }
 
 TEST(InputDigest, Sha256OfSettingsAndFiles) {
