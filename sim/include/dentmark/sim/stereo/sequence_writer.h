@@ -1,5 +1,6 @@
 #pragma once
-// Writes a rendered stereo sequence in the tracker's replay format plus ground truth:
+// Writes a rendered stereo sequence in the tracker's replay format plus ground truth
+// (written through common/replay_files.h and common/stereo_index.h):
 //   stereo.yaml  (image_width, image_height, K1, D1, K2, D2, R, T; p_camR = R p_camL + T)
 //   frames.csv   (index,t,left,right; PNG paths relative to the directory)
 //   seeds.yaml   (seeds_right: N x 2 float, rough right-image corners of frame 0)

@@ -4,7 +4,8 @@
 // tracing with supersampled edges (ray_tracer.h) through Brown-Conrady lenses (lens.h),
 // motion blur over the exposure, defocus, vignetting, a lighting gradient fixed in the
 // station that drifts over time, Poisson and read noise on a Bayer sensor with
-// demosaicing and gamma (sensor.h). It writes the tracker's replay format:
+// demosaicing and gamma (sensor.h). It writes the tracker's replay format (through
+// common/replay_files.h and common/stereo_index.h, as sim/stereo does):
 //   stereo.yaml  (image_width, image_height, K1, D1, K2, D2, R, T; the exact lenses)
 //   frames.csv   (index,t,left,right; 8-bit BGR PNGs; t is the middle of the exposure)
 //   seeds.yaml   (seeds_right: rough right-image corners of frame 0)
