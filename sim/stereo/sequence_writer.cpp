@@ -13,7 +13,7 @@
 #include "dentmark/sim/stereo/panel_motion.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 namespace fs = std::filesystem;
 namespace {
 
@@ -121,4 +121,4 @@ void write_sequence(const SequenceOptions& options, const fs::path& dir) {
   }
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -15,7 +15,7 @@
 #include "dentmark/sim/stereo_raytrace/conveyor.h"
 #include "dentmark/sim/stereo_raytrace/ray_tracer.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 namespace fs = std::filesystem;
 namespace {
 
@@ -189,4 +189,4 @@ void write_ray_sequence(const RaySequenceOptions& options, const fs::path& dir) 
   }
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

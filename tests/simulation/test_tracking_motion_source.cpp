@@ -19,9 +19,9 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   simulation::ScenarioOptions scenario;
   scenario.position = 'A';
   const simulation::Workcell cell = simulation::make_workcell(scenario, Transform::Identity(), 1.0, 0.8);
-  const stereo::StereoRig& rig = cell.rig;
-  const stereo::StereoRenderer renderer(rig, cell.door);
-  stereo::PanelMotion line = cell.motion;
+  const sim::stereo::StereoRig& rig = cell.rig;
+  const sim::stereo::StereoRenderer renderer(rig, cell.door);
+  sim::stereo::PanelMotion line = cell.motion;
   line.vibration = 0.0;
   // The scan is at t = 0; the cameras expose at 0.07 + 0.1 k s.
   const double first_frame = 0.07;
@@ -33,14 +33,14 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
     f.t = first_frame + 0.1 * static_cast<double>(k);
     f.index = k++;
     const Transform pose = line.T_camL_panel(f.t);
-    f.left = renderer.render(stereo::Eye::kLeft, pose, {}, rng);
-    f.right = renderer.render(stereo::Eye::kRight, pose, {}, rng);
+    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
+    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
     return f;
   };
   std::vector<cv::Point2f> seeds;
   for (const auto& q : renderer.door().features) {
     const cv::Point2d p =
-        renderer.project(stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
+        renderer.project(sim::stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
     seeds.emplace_back(static_cast<float>(p.x) + 1.5f, static_cast<float>(p.y) - 1.0f);
   }
   TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 struct SequenceOptions {
   int width = 1280;
@@ -54,4 +54,4 @@ class SequenceError : public std::runtime_error {
 // SequenceError on bad options or I/O failure.
 void write_sequence(const SequenceOptions& options, const std::filesystem::path& dir);
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -20,7 +20,7 @@
 
 #include "dentmark/sim/stereo_raytrace/sensor.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct RaySequenceOptions {
   int width = 1280;
@@ -60,4 +60,4 @@ std::string describe(const RaySequenceOptions& o);
 // Throws RaySequenceError on bad options or I/O failure.
 void write_ray_sequence(const RaySequenceOptions& options, const std::filesystem::path& dir);
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace
