@@ -2,6 +2,7 @@
 
 #include <iomanip>
 #include <opencv2/core.hpp>
+#include <sstream>
 
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/stereo_index.h"
@@ -30,6 +31,19 @@ void write_replay_points(const fs::path& path, const std::vector<Eigen::Vector3d
   for (const auto& p : points) f << p.x() << "," << p.y() << "," << p.z() << "\n";
   f.close();
   if (!f) throw FileError(path, "write failed");
+}
+
+void write_replay_points(const fs::path& path, const Eigen::Isometry3d& T_camL_panel0,
+                         const std::vector<Eigen::Vector2d>& panel_points) {
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& q : panel_points) points.push_back(T_camL_panel0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
+  write_replay_points(path, points);
+}
+
+std::string replay_image_name(long index) {
+  std::ostringstream name;
+  name << std::setw(6) << std::setfill('0') << index << ".png";
+  return name.str();
 }
 
 ReplayFrameWriter::ReplayFrameWriter(const fs::path& dir)

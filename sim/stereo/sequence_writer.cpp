@@ -1,11 +1,8 @@
 #include "dentmark/sim/stereo/sequence_writer.h"
 
 #include <cmath>
-#include <fstream>
-#include <iomanip>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
@@ -69,11 +66,8 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
     }
     files::write_replay_seeds(dir / "seeds.yaml", seeds);
   }
-  std::vector<Eigen::Vector3d> eval, feats;
-  for (const auto& q : door.lower_panel_points) eval.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  for (const auto& q : door.features) feats.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  files::write_replay_points(dir / "eval_points.csv", eval);
-  files::write_replay_points(dir / "features.csv", feats);
+  files::write_replay_points(dir / "eval_points.csv", pose0, door.lower_panel_points);
+  files::write_replay_points(dir / "features.csv", pose0, door.features);
 
   files::ReplayFrameWriter frames(dir);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
@@ -91,21 +85,20 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
       arm.b = pose * Eigen::Vector3d(-0.48, -1.6, -0.6);
       c.occluder = arm;
     }
-    std::ostringstream name;
-    name << std::setw(6) << std::setfill('0') << k << ".png";
+    const std::string name = files::replay_image_name(k);
     for (Eye eye : {Eye::kLeft, Eye::kRight}) {
       RenderConditions ce = c;
       if (eye == Eye::kRight) ce.gain *= 0.96, ce.offset = 3.0;  // the two sensors never match exactly
       cv::Mat img = renderer.render(eye, pose, ce, rng);
       if (o.colour) cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
-      const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name.str();
+      const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name;
       try {
         image::write_png(p.string(), img, 1);
       } catch (const image::ImageError& e) {
         throw SequenceError(e.what());
       }
     }
-    frames.add(k, t, "left/" + name.str(), "right/" + name.str(), motion.motion(t).matrix());
+    frames.add(k, t, "left/" + name, "right/" + name, motion.motion(t).matrix());
   }
   frames.finish();
 }

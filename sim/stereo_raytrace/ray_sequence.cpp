@@ -2,7 +2,6 @@
 
 #include <Eigen/Core>
 #include <cmath>
-#include <fstream>
 #include <iomanip>
 #include <numbers>
 #include <opencv2/core/eigen.hpp>
@@ -123,11 +122,8 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
     }
     files::write_replay_seeds(dir / "seeds.yaml", seeds);
   }
-  std::vector<Eigen::Vector3d> eval, feats;
-  for (const auto& q : door.eval_points) eval.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  for (const auto& q : door.features) feats.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  files::write_replay_points(dir / "eval_points.csv", eval);
-  files::write_replay_points(dir / "features.csv", feats);
+  files::write_replay_points(dir / "eval_points.csv", pose0, door.eval_points);
+  files::write_replay_points(dir / "features.csv", pose0, door.features);
 
   files::ReplayFrameWriter frames(dir);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
@@ -143,8 +139,7 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
     Lighting light;
     light.level = 1.0 + o.lighting_drift * std::sin(2.0 * std::numbers::pi * t / 13.0 + 0.4);
     const double depth = line.T_camL_panel(t).translation().z();
-    std::ostringstream name;
-    name << std::setw(6) << std::setfill('0') << k << ".png";
+    const std::string name = files::replay_image_name(k);
     for (int eye = 0; eye < 2; ++eye) {
       const RayTracer& tracer = eye == 0 ? left : right;
       SensorOptions s = o.sensor;
@@ -152,7 +147,7 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
       const double pitch = o.pixel_pitch;
       s.defocus_radius = circle_of_confusion_px(depth, o.focus, o.f_number, o.focal_px * pitch, pitch);
       const cv::Mat3b img = expose(tracer.render(door, arm, poses, light), tracer.corner_rays(), s, rng);
-      const fs::path p = dir / (eye == 0 ? "left" : "right") / name.str();
+      const fs::path p = dir / (eye == 0 ? "left" : "right") / name;
       try {
         image::write_png(p.string(), img, 1);
       } catch (const image::ImageError& e) {
@@ -160,7 +155,7 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
       }
     }
     const Eigen::Isometry3d m = line.T_camL_panel(t) * M0inv;
-    frames.add(k, t, "left/" + name.str(), "right/" + name.str(), m.matrix());
+    frames.add(k, t, "left/" + name, "right/" + name, m.matrix());
   }
   frames.finish();
 }

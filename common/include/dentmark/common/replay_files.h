@@ -25,6 +25,14 @@ namespace dentmark::files {
 void write_replay_seeds(const std::filesystem::path& path, const std::vector<cv::Point2f>& seeds_right);
 
 void write_replay_points(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points);
+// The same for points in the panel's plane (x, y; z = 0 in the panel's frame), written
+// where they are in camL at frame 0: T_camL_panel0 * (x, y, 0).
+void write_replay_points(const std::filesystem::path& path, const Eigen::Isometry3d& T_camL_panel0,
+                         const std::vector<Eigen::Vector2d>& panel_points);
+
+// The file name of frame `index`'s images, six digits and ".png" (000012.png): the left
+// one is left/NAME, the right one right/NAME, relative to the folder.
+std::string replay_image_name(long index);
 
 // frames.csv and truth.csv of a replay folder, a line each per frame, in frame order.
 class ReplayFrameWriter {
