@@ -40,8 +40,9 @@ File open_file(const std::string& path, const char* mode) {
   return {f, &std::fclose};
 }
 
-// Reads the header and sets the transformations to 8/16-bit grey or BGR, native order.
-bool read_header(png_structp png, png_infop info, std::FILE* f, Header* h) {
+// Reads the header and sets the transformations: to 8/16-bit grey or BGR in native
+// order, or (grey8) to 8-bit grey.
+bool read_header(png_structp png, png_infop info, std::FILE* f, bool grey8, Header* h) {
   if (setjmp(png_jmpbuf(png))) return false;
   png_init_io(png, f);
   png_read_info(png, info);
@@ -49,8 +50,12 @@ bool read_header(png_structp png, png_infop info, std::FILE* f, Header* h) {
   if (colour == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
   if (colour == PNG_COLOR_TYPE_GRAY && png_get_bit_depth(png, info) < 8) png_set_expand_gray_1_2_4_to_8(png);
   png_set_strip_alpha(png);
+  if (grey8) {
+    if (png_get_bit_depth(png, info) == 16) png_set_strip_16(png);
+    if (colour & PNG_COLOR_MASK_COLOR) png_set_rgb_to_gray(png, 1, 0.299, 0.587);
+  }
   png_set_bgr(png);
-  if (png_get_bit_depth(png, info) == 16) png_set_swap(png);  // PNG is big-endian
+  if (png_get_bit_depth(png, info) == 16 && !grey8) png_set_swap(png);  // PNG is big-endian
   png_read_update_info(png, info);
   h->width = png_get_image_width(png, info);
   h->height = png_get_image_height(png, info);
@@ -82,9 +87,7 @@ bool write_all(png_structp png, png_infop info, std::FILE* f, const Header* h, p
   return true;
 }
 
-}  // namespace
-
-cv::Mat read_png(const std::string& path) {
+cv::Mat read_png_as(const std::string& path, bool grey8) {
   File f = open_file(path, "rb");
   png_byte signature[8];
   if (std::fread(signature, 1, sizeof signature, f.get()) != sizeof signature ||
@@ -105,7 +108,7 @@ cv::Mat read_png(const std::string& path) {
   } destroy{&png, &info};
 
   Header h;
-  if (!read_header(png, info, f.get(), &h)) throw ImageError(path + ": " + sink.message);
+  if (!read_header(png, info, f.get(), grey8, &h)) throw ImageError(path + ": " + sink.message);
   if (h.channels != 1 && h.channels != 3) throw ImageError(path + ": unsupported PNG channel layout");
   if (h.width == 0 || h.height == 0 || h.width > 65535 || h.height > 65535)
     throw ImageError(path + ": image size " + std::to_string(h.width) + " x " + std::to_string(h.height) +
@@ -116,6 +119,16 @@ cv::Mat read_png(const std::string& path) {
   for (png_uint_32 r = 0; r < h.height; ++r) rows[r] = img.ptr<png_byte>(static_cast<int>(r));
   if (!read_rows(png, info, rows.data())) throw ImageError(path + ": " + sink.message);
   return img;
+}
+
+}  // namespace
+
+cv::Mat read_png(const std::string& path) {
+  return read_png_as(path, false);
+}
+
+cv::Mat read_png_grey(const std::string& path) {
+  return read_png_as(path, true);
 }
 
 void write_png(const std::string& path, const cv::Mat& image, int compression) {

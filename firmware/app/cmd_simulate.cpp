@@ -45,6 +45,8 @@ struct SimulateOptions {
   bool serve = false;
   int port = 0;
   std::vector<std::string> faults;
+  bool next_job = false;
+  double frame_time = 0.020;
   bool self_calibrate = false;
   std::string calibration_cache;
   int jobs = 0;  // scenarios run at once; 0: one per core, at most 4
@@ -122,6 +124,11 @@ void print_table(const std::vector<simulation::ScenarioResult>& results) {
           "every defect reported after %.1f ms\n",
           r.fault_time, r.options.position, r.options.yaw * 180.0 / std::numbers::pi,
           r.valve_closed_after * 1e3, r.robot_still_after * 1e3, r.reported_after * 1e3);
+  for (const auto& r : results)
+    if (r.next_job)
+      std::printf("next job (%c%+.0f, scanned at t = %.3f s): marked/sent %d/%d, worst axis error %.2f mm\n",
+                  r.options.position, r.options.yaw * 180.0 / std::numbers::pi, r.next_job->t_scan,
+                  r.next_job->marked, r.next_job->defects_sent, r.next_job->max_abs.maxCoeff() * 1e3);
 }
 
 nlohmann::json to_json(const simulation::ScenarioResult& r) {
@@ -131,6 +138,24 @@ nlohmann::json to_json(const simulation::ScenarioResult& r) {
                      {"truth_index", e.truth_index},
                      {"t_spray", e.t_spray},
                      {"error_base", {e.error_base.x(), e.error_base.y(), e.error_base.z()}}});
+  nlohmann::json next_job = nullptr;
+  if (r.next_job) {
+    const auto& n = *r.next_job;
+    nlohmann::json next_marks = nlohmann::json::array();
+    for (const auto& e : n.errors)
+      next_marks.push_back({{"defect_id", e.defect_id},
+                            {"truth_index", e.truth_index},
+                            {"t_spray", e.t_spray},
+                            {"error_base", {e.error_base.x(), e.error_base.y(), e.error_base.z()}}});
+    next_job = {{"t_scan", n.t_scan},
+                {"defects_sent", n.defects_sent},
+                {"marked", n.marked},
+                {"unmatched_marks", n.unmatched_marks},
+                {"valve_pulses", n.valve_pulses},
+                {"mean_abs_error", {n.mean_abs.x(), n.mean_abs.y(), n.mean_abs.z()}},
+                {"max_abs_error", {n.max_abs.x(), n.max_abs.y(), n.max_abs.z()}},
+                {"marks", next_marks}};
+  }
   return {{"position", std::string(1, r.options.position)},
           {"yaw", r.options.yaw},
           {"defects_sent", r.defects_sent},
@@ -152,6 +177,8 @@ nlohmann::json to_json(const simulation::ScenarioResult& r) {
           {"valve_closed_after", r.valve_closed_after},
           {"robot_still_after", r.robot_still_after},
           {"reported_after", r.reported_after},
+          {"tracking_lost_after", r.detected_after},
+          {"next_job", next_job},
           {"marks", marks}};
 }
 
@@ -228,6 +255,8 @@ int run_simulate(const SimulateOptions& opt) {
     if (opt.truth_file.empty() != opt.defects_file.empty())
       throw std::runtime_error("--defects and --truth go together (neither: built-in door)");
     for (const auto& f : opt.faults) faults.push_back(simulation::parse_fault(f));
+    if (opt.serve && opt.next_job)
+      throw std::runtime_error("--next-job runs the host side inside: not with --serve");
     if (opt.serve && (opt.defects_file.empty() || scenarios.size() != 1))
       throw std::runtime_error(
           "--serve needs --defects/--truth (the list the host sends) and one --scenario");
@@ -252,6 +281,8 @@ int run_simulate(const SimulateOptions& opt) {
   sim.board_file = opt.board_file;
   sim.serve = opt.serve;
   sim.faults = faults;
+  sim.next_job = opt.next_job;
+  sim.frame_processing_time = opt.frame_time;
   sim.serve_port = opt.port;
   if (opt.self_calibrate)
     sim.self_calibration_cache =
@@ -339,6 +370,13 @@ void register_simulate(CLI::App& app) {
       "--fault", opt->faults,
       "Inject a fault KIND@SECONDS after marking starts: estop, robot-link, robot-blip, robot-fault, "
       "camera, tracking (repeatable)");
+  cmd->add_option("--frame-time", opt->frame_time,
+                  "Seconds of simulated time the target board takes to track one stereo frame")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_flag("--next-job", opt->next_job,
+                "After the job: clear the faults, scan the door again where it then is and send it as the "
+                "next job (scored like the first)");
   cmd->add_flag("--serve", opt->serve,
                 "Wait for an outside host to send the list (dentmark send --wait) instead of sending it");
   cmd->add_option("--port", opt->port, "With --serve: the link port (0: any free port, logged)")

@@ -4,41 +4,16 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <opencv2/aruco/charuco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <regex>
 #include <utility>
 
 #include "dentmark/firmware/calibrate/calibrate_error.h"
+#include "dentmark/firmware/calibrate/charuco_module.h"
 
 namespace dentmark::calibrate {
 namespace {
-
-// OpenCV 4.6's cv::aruco::PREDEFINED_DICTIONARY_NAME, by name.
-constexpr std::array<std::pair<const char*, int>, 21> kDictionaries{{
-    {"DICT_4X4_50", cv::aruco::DICT_4X4_50},
-    {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
-    {"DICT_4X4_250", cv::aruco::DICT_4X4_250},
-    {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
-    {"DICT_5X5_50", cv::aruco::DICT_5X5_50},
-    {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
-    {"DICT_5X5_250", cv::aruco::DICT_5X5_250},
-    {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
-    {"DICT_6X6_50", cv::aruco::DICT_6X6_50},
-    {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
-    {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
-    {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
-    {"DICT_7X7_50", cv::aruco::DICT_7X7_50},
-    {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
-    {"DICT_7X7_250", cv::aruco::DICT_7X7_250},
-    {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
-    {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL},
-    {"DICT_APRILTAG_16h5", cv::aruco::DICT_APRILTAG_16h5},
-    {"DICT_APRILTAG_25h9", cv::aruco::DICT_APRILTAG_25h9},
-    {"DICT_APRILTAG_36h10", cv::aruco::DICT_APRILTAG_36h10},
-    {"DICT_APRILTAG_36h11", cv::aruco::DICT_APRILTAG_36h11},
-}};
 
 std::string format_m(double v) {
   char b[32];
@@ -82,43 +57,6 @@ Detection detect_chessboard(const TargetSpec& t, const cv::Mat& grey) {
                    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-4));
   out.ids.resize(out.corners.size());
   for (std::size_t i = 0; i < out.ids.size(); ++i) out.ids[i] = static_cast<int>(i);
-  out.found = true;
-  return out;
-}
-
-Detection detect_charuco(const TargetSpec& t, const cv::Mat& grey) {
-  Detection out;
-  const cv::Ptr<cv::aruco::Dictionary> dict = cv::aruco::getPredefinedDictionary(t.dictionary_id);
-  const cv::Ptr<cv::aruco::CharucoBoard> board = cv::aruco::CharucoBoard::create(
-      t.cols, t.rows, static_cast<float>(t.square_m), static_cast<float>(t.marker_m), dict);
-  std::vector<std::vector<cv::Point2f>> marker_corners;
-  std::vector<int> marker_ids;
-  const cv::Ptr<cv::aruco::DetectorParameters> params = cv::aruco::DetectorParameters::create();
-  params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;  // the chessboard corners are refined below
-  cv::aruco::detectMarkers(grey, dict, marker_corners, marker_ids, params);
-  if (marker_ids.empty()) {
-    out.why = "no " + t.dictionary + " markers found";
-    return out;
-  }
-  cv::aruco::interpolateCornersCharuco(marker_corners, marker_ids, grey, board, out.corners, out.ids);
-  if (out.corners.size() < 6) {
-    out.why = std::to_string(out.corners.size()) + " ChArUco corners found (need 6)";
-    out.corners.clear();
-    out.ids.clear();
-    return out;
-  }
-  // Window half-size: inside the white gap between the corner and the nearest marker
-  // ((square − marker) / 2), whose edges would pull the saddle point. Pixels per metre
-  // from the detected markers' mean side.
-  double side_px = 0.0;
-  for (const auto& q : marker_corners)
-    for (int k = 0; k < 4; ++k)
-      side_px += cv::norm(q[static_cast<std::size_t>(k)] - q[static_cast<std::size_t>((k + 1) % 4)]);
-  side_px /= 4.0 * static_cast<double>(marker_corners.size());
-  const double gap_px = 0.5 * (t.square_m - t.marker_m) * side_px / t.marker_m;
-  const int half = std::clamp(static_cast<int>(gap_px) - 1, 2, 11);
-  cv::cornerSubPix(grey, out.corners, cv::Size(half, half), cv::Size(-1, -1),
-                   cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-4));
   out.found = true;
   return out;
 }
@@ -172,14 +110,14 @@ TargetSpec parse_target(const std::string& pattern, double square_m, double mark
   if (!(marker_m > 0.0 && marker_m < square_m))
     throw CalibrateError("--marker: " + format_m(marker_m) + " m must be positive and smaller than --square");
   t.marker_m = marker_m;
-  for (const auto& [name, id] : kDictionaries)
-    if (dictionary == name) t.dictionary_id = id;
+  const CharucoModule& charuco = charuco_module();
+  t.dictionary_id = charuco.dictionary_id(dictionary.c_str());
   if (t.dictionary_id < 0)
     throw CalibrateError("--dictionary: '" + dictionary +
                          "' is not an OpenCV predefined dictionary (e.g. DICT_5X5_100)");
   t.dictionary = dictionary;
   const int markers = (t.cols * t.rows) / 2;
-  const int available = cv::aruco::getPredefinedDictionary(t.dictionary_id)->bytesList.rows;
+  const int available = charuco.dictionary_size(t.dictionary_id);
   if (markers > available)
     throw CalibrateError("--dictionary: " + dictionary + " has " + std::to_string(available) +
                          " markers; a " + std::to_string(t.cols) + "x" + std::to_string(t.rows) +
@@ -189,7 +127,7 @@ TargetSpec parse_target(const std::string& pattern, double square_m, double mark
 
 Detection detect_target(const TargetSpec& t, const cv::Mat& grey) {
   CV_Assert(grey.type() == CV_8UC1);
-  return t.kind == TargetKind::kChessboard ? detect_chessboard(t, grey) : detect_charuco(t, grey);
+  return t.kind == TargetKind::kChessboard ? detect_chessboard(t, grey) : charuco_module().detect(t, grey);
 }
 
 }  // namespace dentmark::calibrate

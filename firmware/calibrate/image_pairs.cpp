@@ -14,7 +14,7 @@ namespace fs = std::filesystem;
 std::vector<ImagePair> find_image_pairs(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw CalibrateError(dir.string() + ": not a directory");
-  static const std::regex re(R"(^(left|right)([0-9]{1,9})\.(png|jpg|jpeg|bmp|tif|tiff)$)", std::regex::icase);
+  static const std::regex re(R"(^(left|right)([0-9]{1,9})\.(png|jpg|jpeg)$)", std::regex::icase);
   std::map<long, ImagePair> pairs;
   fs::directory_iterator it(dir, ec);
   if (ec) throw CalibrateError(dir.string() + ": cannot list (" + ec.message() + ")");
@@ -50,8 +50,8 @@ std::vector<ImagePair> find_image_pairs(const fs::path& dir) {
   }
   if (out.empty())
     throw CalibrateError(dir.string() +
-                         ": no image pairs (expected left<N>.<ext> and right<N>.<ext>, ext png, jpg, "
-                         "jpeg, bmp, tif or tiff)");
+                         ": no image pairs (expected left<N>.<ext> and right<N>.<ext>, ext png, jpg or "
+                         "jpeg)");
   return out;
 }
 

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <regex>
 
 #include "dentmark/common/atomic_file.h"
+#include "dentmark/common/image/image_file.h"
 #include "dentmark/common/ingest/read_scan_file.h"
 #include "dentmark/firmware/calibrate/board_pose.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
@@ -55,8 +55,12 @@ std::vector<ScannerCaptureFiles> find_scanner_captures(const fs::path& dir) {
 namespace {
 
 cv::Mat grey(const fs::path& path, const track::StereoCalibration& stereo) {
-  cv::Mat m = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-  if (m.empty()) throw CalibrateError(path.string() + ": not a readable image");
+  cv::Mat m;
+  try {
+    m = image::read_grey_image(path.string());
+  } catch (const image::ImageError& e) {
+    throw CalibrateError(e.what());
+  }
   if (m.size() != stereo.size)
     throw CalibrateError(path.string() + ": " + std::to_string(m.cols) + "x" + std::to_string(m.rows) +
                          ", the stereo calibration is for " + std::to_string(stereo.size.width) + "x" +

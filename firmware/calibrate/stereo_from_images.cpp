@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
 
+#include "dentmark/common/image/image_file.h"
 #include "dentmark/common/version.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 #include "dentmark/firmware/calibrate/input_digest.h"
@@ -12,14 +12,11 @@ namespace dentmark::calibrate {
 namespace {
 
 cv::Mat read_grey(const std::filesystem::path& p) {
-  cv::Mat img;
   try {
-    img = cv::imread(p.string(), cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception& e) {
-    throw CalibrateError(p.string() + ": not a readable image (" + e.err + ")");
+    return image::read_grey_image(p.string());
+  } catch (const image::ImageError& e) {
+    throw CalibrateError(e.what());
   }
-  if (img.empty()) throw CalibrateError(p.string() + ": not a readable image");
-  return img;
 }
 
 }  // namespace

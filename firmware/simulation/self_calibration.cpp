@@ -2,12 +2,12 @@
 
 #include <cstdio>
 #include <functional>
-#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
 #include "dentmark/common/clock/clock.h"
+#include "dentmark/common/image/png_io.h"
 #include "dentmark/common/ingest/mesh_writer.h"
 #include "dentmark/common/log.h"
 #include "dentmark/common/utc_time.h"
@@ -101,10 +101,10 @@ void calibrate_stereo_step(const Workcell& cell, const fs::path& out, const fs::
     const Transform T = make_transform(r, c - r * centre_board);
     char name[32];
     std::snprintf(name, sizeof name, "%02d.png", k);
-    cv::imwrite((work / (std::string("left") + name)).string(),
-                renderer.render(sim::stereo::Eye::kLeft, T, imaging, noise));
-    cv::imwrite((work / (std::string("right") + name)).string(),
-                renderer.render(sim::stereo::Eye::kRight, T, imaging, noise));
+    image::write_png((work / (std::string("left") + name)).string(),
+                     renderer.render(sim::stereo::Eye::kLeft, T, imaging, noise));
+    image::write_png((work / (std::string("right") + name)).string(),
+                     renderer.render(sim::stereo::Eye::kRight, T, imaging, noise));
   }
   calibrate::StereoCalibrationRun run = calibrate::calibrate_stereo_images(
       work, calibrate::parse_target("chessboard:9x6", board.square, 0.0, ""));
@@ -207,10 +207,10 @@ void render_scanner_captures(const sim::stereo::StereoRig& rig, const Transform&
     const Transform T_camL_board = make_transform(r, c - r * centre_board);
     const std::string n = std::to_string(k);
     const sim::calibration::TargetImaging imaging;
-    cv::imwrite((dir / ("left" + n + ".png")).string(),
-                renderer.render(sim::stereo::Eye::kLeft, T_camL_board, imaging, cv_rng));
-    cv::imwrite((dir / ("right" + n + ".png")).string(),
-                renderer.render(sim::stereo::Eye::kRight, T_camL_board, imaging, cv_rng));
+    image::write_png((dir / ("left" + n + ".png")).string(),
+                     renderer.render(sim::stereo::Eye::kLeft, T_camL_board, imaging, cv_rng));
+    image::write_png((dir / ("right" + n + ".png")).string(),
+                     renderer.render(sim::stereo::Eye::kRight, T_camL_board, imaging, cv_rng));
     sim::calibration::SlsImaging sls;
     sls.spacing = 0.0015;
     sls.outlier_fraction = 0.002;

@@ -54,21 +54,24 @@ std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t stream) {
 // The panel's true motion, as a perfect tracker would report it (diagnostics).
 class TruthMotion final : public station::MotionSource {
  public:
-  TruthMotion(const sim::stereo::PanelMotion& motion, clock::Clock& clock) : motion_(motion), clock_(clock) {}
+  TruthMotion(const sim::stereo::PanelMotion& motion, clock::Clock& clock, double t_scan)
+      : motion_(motion), clock_(clock), T_scan_camL_(motion.T_camL_panel(t_scan).inverse()) {}
   std::optional<station::MotionEstimate> latest() override {
     station::MotionEstimate e;
     e.t = clock_.now();
-    e.M_camL = motion_.motion(e.t);
+    e.M_camL = predict(e.t);
     e.ok = true;
     e.quality = 1.0;
     e.features = 10;
     return e;
   }
-  Transform predict(double t) override { return motion_.motion(t); }
+  // M(t) from the job's scan on (motion_source.h).
+  Transform predict(double t) override { return motion_.T_camL_panel(t) * T_scan_camL_; }
 
  private:
   const sim::stereo::PanelMotion& motion_;
   clock::Clock& clock_;
+  const Transform T_scan_camL_;  // the panel's pose at the scan, inverted
 };
 
 class TruthTracking final : public station::PanelTracking {
@@ -76,8 +79,8 @@ class TruthTracking final : public station::PanelTracking {
   TruthTracking(const sim::stereo::PanelMotion& motion, clock::Clock& clock)
       : motion_(motion), clock_(clock) {}
   std::optional<std::string> refuse(const protocol::DefectList&) override { return std::nullopt; }
-  std::unique_ptr<station::MotionSource> start(const protocol::DefectList&, double) override {
-    return std::make_unique<TruthMotion>(motion_, clock_);
+  std::unique_ptr<station::MotionSource> start(const protocol::DefectList&, double t_scan) override {
+    return std::make_unique<TruthMotion>(motion_, clock_, t_scan);
   }
 
  private:
@@ -139,8 +142,9 @@ std::string twin_board_file(const SimulationOptions& sim) {
 }
 
 // Scores each spray against the true defect nearest to what was sent for it.
-void score(ScenarioResult& result, const Workcell& cell, const protocol::DefectList& list,
-           const ScanTruth& truth, const std::vector<sim::robot::SprayRecord>& sprays, double standoff) {
+template <typename Result>
+void score(Result& result, const Workcell& cell, const protocol::DefectList& list, const ScanTruth& truth,
+           const std::vector<sim::robot::SprayRecord>& sprays, double standoff) {
   std::vector<protocol::Mark> marked;
   for (const protocol::Mark& m : result.report.marks)
     if (m.outcome == protocol::MarkOutcome::kMarked) marked.push_back(m);
@@ -179,8 +183,8 @@ void score(ScenarioResult& result, const Workcell& cell, const protocol::DefectL
 // The host inside the twin: the code of `dentmark send --wait` (JobSession). The scan
 // was taken at t = 0; the list goes out while time stands still, then the line runs.
 protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, clock::LockstepClock& clock,
-                              const std::function<void()>& start_time) {
-  list.scan_time = kEpoch;
+                              const std::function<void()>& start_time, double t_scan = 0.0) {
+  list.scan_time = kEpoch + t_scan;
   protocol::ClientOptions co;
   co.host = "127.0.0.1";
   co.port = port;
@@ -225,36 +229,42 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
   throw std::runtime_error("job " + std::to_string(list.job_id) + " did not end in time");
 }
 
-// From the records of the valve line, the robot's tip and the reports: how long after
-// the first fault the station was safe (ScenarioResult).
-void time_to_safe(ScenarioResult& result, double t_fault, const std::vector<hal::EdgeRecord>& edges,
-                  const std::string& valve, const std::vector<sim::robot::TipSample>& tip) {
+// From the records of the valve line, the robot's tip and the reports up to t_end (the
+// next job's scan, or the end): how long after the first fault the station was safe
+// for good (ScenarioResult).
+void time_to_safe(ScenarioResult& result, double t_fault, double t_end,
+                  const std::vector<hal::EdgeRecord>& edges, const std::string& valve,
+                  const std::vector<sim::robot::TipSample>& tip) {
   result.fault_time = t_fault;
-  bool open = false;
+  for (const hal::EdgeRecord& e : edges)
+    if (e.line == valve && e.time < t_fault) result.valve_open_at_fault = e.active;
+  for (const sim::robot::TipSample& sample : tip)
+    if (sample.time < t_fault) result.robot_speed_at_fault = sample.speed;
+  // The valve's last closing after the fault (it stays closed from then on).
   double closed = t_fault;
-  for (const hal::EdgeRecord& e : edges) {
-    if (e.line != valve) continue;
-    if (e.time <= t_fault) {
-      open = e.active;
-      continue;
-    }
-    if (open && !e.active) {
-      closed = e.time;
-      break;
-    }
-    open = e.active;
-  }
+  for (const hal::EdgeRecord& e : edges)
+    if (e.line == valve && e.time > t_fault && e.time < t_end && !e.active) closed = e.time;
   result.valve_closed_after = closed - t_fault;
   // The first sample at rest after the last one in motion (the simulator records the
   // instant a move or a braking ends).
   double still = t_fault;
-  for (std::size_t i = 0; i < tip.size(); ++i)
+  for (std::size_t i = 0; i < tip.size() && tip[i].time < t_end; ++i)
     if (tip[i].time >= t_fault && tip[i].speed > 0.0)
       still = i + 1 < tip.size() ? tip[i + 1].time : tip[i].time;
   result.robot_still_after = still - t_fault;
   double reported = t_fault;
   for (const protocol::Mark& m : result.report.marks) reported = std::max(reported, m.time);
   result.reported_after = reported - t_fault;
+}
+
+// When the station gave up on the panel after a camera or tracking fault: the first
+// defect it reported tracking_lost.
+void fault_detection(ScenarioResult& result, double t_fault) {
+  double detected = std::numeric_limits<double>::infinity();
+  for (const protocol::Mark& m : result.report.marks)
+    if (m.reason == protocol::MarkReason::kTrackingLost && m.time >= t_fault)
+      detected = std::min(detected, m.time);
+  result.detected_after = std::isfinite(detected) ? detected - t_fault : -1.0;
 }
 
 }  // namespace
@@ -385,24 +395,82 @@ class DoorCameras {
 };
 
 // Starts the line once the list is out, and ends its wait when the scenario is over.
+// With a next job: the host says when the first job has ended; the line says (time held)
+// when the faults are cleared and the door can be scanned again.
 struct LineStop {
   std::mutex mutex;
-  std::condition_variable changed;
+  std::condition_variable changed;             // waited on through the clock (the line)
+  std::condition_variable next_ready_changed;  // waited on in real time (the host side)
   bool started = false;
   bool done = false;
+  bool first_job_over = false;
+  bool next_ready = false;
+  double t_next = 0.0;  // the next job's scan (the clock held from then until it is sent)
 };
 
-// Waits on the twin's clock until t; false when the scenario ended first.
-bool line_wait_until(clock::Clock& clock, LineStop& stop, double t) {
+// Waits on the twin's clock until t; false when the scenario ended first, or (with
+// 'or_job_over') the first job did.
+bool line_wait_until(clock::Clock& clock, LineStop& stop, double t, bool or_job_over = false) {
   std::unique_lock lock(stop.mutex);
-  while (!stop.done && !stop.started)
+  const auto over = [&] { return stop.done || (or_job_over && stop.first_job_over); };
+  while (!over() && !stop.started)
     clock.wait_until(lock, stop.changed, std::numeric_limits<double>::infinity());
-  while (!stop.done && clock.now() < t) clock.wait_until(lock, stop.changed, t);
-  return !stop.done;
+  while (!over() && clock.now() < t) clock.wait_until(lock, stop.changed, t);
+  return !over();
+}
+
+// Clears an injected fault where it clears (SimulationOptions::next_job).
+void clear_fault(FaultKind kind, const board::BoardConfig& board, hal::SimGpio& gpio,
+                 sim::robot::RobotSimulator& robot, DoorCameras& cameras) {
+  switch (kind) {
+    case FaultKind::kEstop:
+      gpio.drive(board.gpio.estop.name, false);
+      break;
+    case FaultKind::kRobotLink:
+    case FaultKind::kRobotLinkBlip:
+      robot.inject_drop(0);
+      break;
+    case FaultKind::kRobotFault:
+      robot.clear_fault();
+      break;
+    case FaultKind::kCamera:
+      cameras.dead = false;
+      break;
+    case FaultKind::kTrackingLost:
+      cameras.panel_gone = false;
+      break;
+  }
+}
+
+// The next job's turn: once the first job is over, the faults are cleared, and then time
+// is held for the host to scan and send the next list.
+void prepare_next_job(const std::vector<Fault>& injected, const board::BoardConfig& board,
+                      clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio,
+                      sim::robot::RobotSimulator& robot, DoorCameras& cameras) {
+  constexpr double kClearAfter = 0.5;  // s after the first job's end
+  constexpr double kScanAfter = 1.0;   // s after the faults are cleared
+  {
+    std::unique_lock lock(stop.mutex);
+    while (!stop.done && !stop.first_job_over)
+      clock.wait_until(lock, stop.changed, std::numeric_limits<double>::infinity());
+    if (stop.done) return;
+  }
+  if (!line_wait_until(clock, stop, clock.now() + kClearAfter)) return;
+  for (const Fault& f : injected) clear_fault(f.kind, board, gpio, robot, cameras);
+  log::info("twin: faults cleared at t = " + std::to_string(clock.now()) + " s");
+  if (!line_wait_until(clock, stop, clock.now() + kScanAfter)) return;
+  clock.pause();  // the host resumes it once the next list is out
+  {
+    std::lock_guard lock(stop.mutex);
+    stop.next_ready = true;
+    stop.t_next = clock.now();
+  }
+  stop.next_ready_changed.notify_all();
 }
 
 // The line around the station: once time runs, the panel reaches the marking place
-// (part-present) at t_mark, and the scenario's faults come after.
+// (part-present) at t_mark, and the scenario's faults come after; with a next job, they
+// are cleared after the first job and the door is made ready for its second scan.
 void run_line(const SimulationOptions& sim, const Workcell& cell, const board::BoardConfig& board,
               clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::robot::RobotSimulator& robot,
               DoorCameras& cameras) {
@@ -410,8 +478,11 @@ void run_line(const SimulationOptions& sim, const Workcell& cell, const board::B
   std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
   if (!line_wait_until(clock, stop, cell.t_mark)) return;
   gpio.drive(board.gpio.part_present.name, true);
+  std::vector<Fault> injected;
   for (const Fault& f : faults) {
-    if (!line_wait_until(clock, stop, cell.t_mark + f.after)) return;
+    // A fault due after the first job has ended is not injected.
+    if (!line_wait_until(clock, stop, cell.t_mark + f.after, true)) break;
+    injected.push_back(f);
     log::warn(std::string("twin: fault ") + to_string(f.kind) + " at t = " + std::to_string(clock.now()) +
               " s");
     switch (f.kind) {
@@ -435,6 +506,7 @@ void run_line(const SimulationOptions& sim, const Workcell& cell, const board::B
         break;
     }
   }
+  if (sim.next_job) prepare_next_job(injected, board, clock, stop, gpio, robot, cameras);
 }
 
 // The station's calibration against the truth: what the self-calibration measured, or
@@ -460,16 +532,43 @@ void note_calibration(ScenarioResult& result, const Workcell& cell,
   result.scanner_calibration_rotation = rotation(cell.T_camL_sls_est, cell.T_camL_sls_true);
 }
 
-// The valve line as the simulated GPIO recorded it.
-void note_valve(ScenarioResult& result, const hal::SimGpio& gpio, const std::string& valve) {
-  result.valve_open_at_end = gpio.level(valve);
-  for (const hal::EdgeRecord& e : gpio.edges())
-    if (e.line == valve && e.active) ++result.valve_pulses;
+// The valve line as the simulated GPIO recorded it from t_begin to t_end.
+template <typename Result>
+void note_valve(Result& result, const hal::SimGpio& gpio, const std::string& valve, double t_begin,
+                double t_end) {
+  result.valve_open_at_end = false;
+  for (const hal::EdgeRecord& e : gpio.edges()) {
+    if (e.line != valve || e.time < t_begin || e.time >= t_end) continue;
+    result.valve_open_at_end = e.active;
+    if (e.active) ++result.valve_pulses;
+  }
+}
+
+// The sprays from t_begin to t_end.
+std::vector<sim::robot::SprayRecord> sprays_between(const std::vector<sim::robot::SprayRecord>& sprays,
+                                                    double t_begin, double t_end) {
+  std::vector<sim::robot::SprayRecord> out;
+  for (const sim::robot::SprayRecord& r : sprays)
+    if (r.time >= t_begin && r.time < t_end) out.push_back(r);
+  return out;
+}
+
+// The door scanned again at t (the scanner's true calibration: the list says where the
+// defects then are), under the next job id; defect ids as before.
+protocol::DefectList rescanned(const protocol::DefectList& list, const Workcell& cell, double t) {
+  protocol::DefectList next = list;
+  next.job_id = list.job_id + 1;
+  const Transform T_sls_sls0 = cell.T_camL_sls_true.inverse() * cell.motion.motion(t) * cell.T_camL_sls_true;
+  for (protocol::Defect& d : next.defects) {
+    d.position = T_sls_sls0 * d.position;
+    d.normal = T_sls_sls0.linear() * d.normal;
+  }
+  return next;
 }
 
 // The host's reports, in the list's defect order, on the twin's clock.
-void take_reports(ScenarioResult& result, const protocol::DefectList& list,
-                  const protocol::JobOutcome& outcome) {
+template <typename Result>
+void take_reports(Result& result, const protocol::DefectList& list, const protocol::JobOutcome& outcome) {
   result.report.job_id = list.job_id;
   for (const protocol::Defect& def : list.defects)
     if (const auto it = outcome.marks.find(def.id); it != outcome.marks.end()) {
@@ -547,6 +646,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     if (!ended_held.exchange(true)) clock.pause();
   };
   d.tracking.grab_timeout = 1.0;
+  d.tracking.frame_processing_time = sim.frame_processing_time;
   d.unix_time = [&clock] { return kEpoch + clock.now(); };
   if (sim.truth_motion)
     d.tracking_override = [&](const station::StationCalibration&) {
@@ -562,8 +662,10 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   result.options = scenario;
   note_calibration(result, cell, self);
   result.defects_sent = static_cast<int>(list.defects.size());
+  std::atomic<bool> next_held{false};  // the line's hold for the next list
   const auto finish_run = [&] {
     start_time();
+    if (next_held.exchange(false)) clock.resume();
     // The host may have every report before the job has ended (and held the clock).
     edge.station().wait_idle(kJobEndGrace);
     result.sim_seconds = clock.now();
@@ -583,25 +685,67 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     robot_sim->stop();
   };
 
+  // The next job, once the first has ended and the line has cleared its faults: the
+  // door scanned again where it then is, sent while time is held.
+  const auto run_next_job = [&]() -> std::pair<protocol::DefectList, protocol::JobOutcome> {
+    edge.station().wait_idle(kJobEndGrace);
+    {
+      std::lock_guard lock(line_stop.mutex);
+      line_stop.first_job_over = true;
+    }
+    clock.notify_all(line_stop.changed);
+    if (ended_held.exchange(false)) clock.resume();
+    double t_next = 0.0;
+    {
+      std::unique_lock lock(line_stop.mutex);
+      if (!line_stop.next_ready_changed.wait_for(lock, std::chrono::duration<double>(kRealReplyTimeout),
+                                                 [&] { return line_stop.next_ready; }))
+        throw std::runtime_error("the twin's line did not clear its faults for the next job");
+      next_held = true;
+      t_next = line_stop.t_next;
+    }
+    protocol::DefectList next = rescanned(list, cell, t_next);
+    const auto go = [&] {
+      if (next_held.exchange(false)) clock.resume();
+    };
+    return {next, run_host(next, edge.port(), clock, go, t_next)};
+  };
+
   protocol::JobOutcome outcome;
+  std::optional<std::pair<protocol::DefectList, protocol::JobOutcome>> next;
   try {
     if (sim.serve)
       outcome = serve_host(list, edge, list_arrived, sim);
     else
       outcome = run_host(list, edge.port(), clock, start_time);
+    if (sim.next_job && !sim.serve) next = run_next_job();
   } catch (const std::exception&) {
     finish_run();
     throw;
   }
   finish_run();
-  note_valve(result, gpio, board.gpio.sprayer_valve.name);
+  const double t_next = next ? line_stop.t_next : std::numeric_limits<double>::infinity();
+  const std::vector<sim::robot::SprayRecord> sprays = robot_sim->sprays();
+  note_valve(result, gpio, board.gpio.sprayer_valve.name, 0.0, t_next);
   take_reports(result, list, outcome);
-  score(result, cell, list, truth, robot_sim->sprays(), scenario.standoff);
+  score(result, cell, list, truth, sprays_between(sprays, 0.0, t_next), scenario.standoff);
   if (!sim.faults.empty()) {
     double first = sim.faults.front().after;
     for (const Fault& f : sim.faults) first = std::min(first, f.after);
-    time_to_safe(result, cell.t_mark + first, gpio.edges(), board.gpio.sprayer_valve.name,
+    const double t_fault = cell.t_mark + first;
+    time_to_safe(result, t_fault, t_next, gpio.edges(), board.gpio.sprayer_valve.name,
                  robot_sim->trajectory());
+    fault_detection(result, t_fault);
+  }
+  if (next) {
+    NextJobResult& n = result.next_job.emplace();
+    n.t_scan = t_next;
+    n.defects_sent = static_cast<int>(next->first.defects.size());
+    note_valve(n, gpio, board.gpio.sprayer_valve.name, t_next, std::numeric_limits<double>::infinity());
+    take_reports(n, next->first, next->second);
+    // Scored against the truth through the first list (same ids, positions at t = 0).
+    score(n, cell, list, truth, sprays_between(sprays, t_next, std::numeric_limits<double>::infinity()),
+          scenario.standoff);
   }
   result.real_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - real_start).count();
   return result;

@@ -167,7 +167,7 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
     return f;
   };
   return std::make_unique<TrackingMotionSource>(config_.calibration, seeds, std::move(frames),
-                                                config_.tracker, &clock_);
+                                                config_.tracker, &clock_, config_.frame_processing_time);
 }
 
 }  // namespace dentmark::station

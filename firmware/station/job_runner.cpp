@@ -76,24 +76,30 @@ void JobRunner::check_interlocks() {
   if (cancelled_) throw JobAbort{MarkReason::kAborted, "job cancelled"};
 }
 
-hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double planned_time) {
+hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double planned_time, Toward toward) {
   if (!config_.planner.limits.contains(T_base_tool.translation()))
     throw SkipDefect{MarkReason::kOutOfReach, "pose outside the workspace"};
   const std::uint16_t seq = robot_.move_to(T_base_tool, config_.planner.limits.max_speed);
-  const hal::RobotStatus s = wait_robot(seq, planned_time + config_.move_timeout_margin);
+  const hal::RobotStatus s =
+      wait_robot(seq, planned_time + config_.move_timeout_margin, toward == Toward::kPanel);
   tip_ = s.T_base_tool.translation();
   return s;
 }
 
-hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout) {
+hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout, bool tracked) {
   // The e-stop is honoured during a move or a spray, not only between them. Within a
   // job the robot is never stopped or faulted, whichever command it last took: a drive
   // fault between two commands must not be cleared by the next one. A refusal or stop
-  // ends the job as a robot fault, a wait past 'timeout' as a timeout.
-  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_, [this](const hal::RobotStatus& s) {
-    check_interlocks();
-    check_robot(s);
-  });
+  // ends the job as a robot fault, a wait past 'timeout' as a timeout. A move towards
+  // the panel aims where the tracker predicts it: with tracking lost (at a poll) the
+  // tool is stopped there and then rather than sent on along a stale prediction.
+  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_,
+                          [this, tracked](const hal::RobotStatus& s) {
+                            check_interlocks();
+                            check_robot(s);
+                            if (tracked && !tracking_ok())
+                              throw JobAbort{MarkReason::kTrackingLost, "tracking lost while approaching"};
+                          });
 }
 
 void JobRunner::check_robot(const hal::RobotStatus& s) {
@@ -118,14 +124,14 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
 
   // Approach: stand off along the tool axis, then go in straight along it.
   const auto [approach, t_approach] = aim(config_.approach_distance);
-  move_and_wait(approach, t_approach);
+  move_and_wait(approach, t_approach, Toward::kPanel);
   hal::RobotStatus at{};
   double residual = 0.0;
   for (int k = 0; k <= config_.max_corrections; ++k) {
     check_interlocks();
     if (!tracking_ok()) throw SkipDefect{MarkReason::kTrackingLost, "tracking lost before spraying"};
     const auto [pose, t_move] = aim(0.0);
-    at = move_and_wait(pose, t_move);
+    at = move_and_wait(pose, t_move, Toward::kPanel);
     // The panel kept moving while the tool travelled: how far is the target now?
     residual = (predicted_tool_pose(target, since_scan, clock_.now()).translation() - tip_).norm();
     if (residual <= config_.correction_tolerance) break;
@@ -159,7 +165,7 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   wait_robot(seq, duration + config_.move_timeout_margin);
   const Transform retract = backed_off(at.T_base_tool, config_.retract_distance);
   if (limits.contains(retract.translation()))
-    move_and_wait(retract, plan::move_time(config_.retract_distance, limits));
+    move_and_wait(retract, plan::move_time(config_.retract_distance, limits), Toward::kAway);
   return mark;
 }
 

@@ -22,8 +22,12 @@ Transform extrapolate_motion(double t0, const Transform& M0, double t1, const Tr
 
 TrackingMotionSource::TrackingMotionSource(track::StereoCalibration calibration,
                                            std::vector<cv::Point2f> seeds_right, StereoFrameSource frames,
-                                           track::TrackerOptions options, clock::Clock* clock)
-    : tracker_(std::move(calibration), options), source_(std::move(frames)), clock_(clock) {
+                                           track::TrackerOptions options, clock::Clock* clock,
+                                           double processing_time)
+    : tracker_(std::move(calibration), options),
+      source_(std::move(frames)),
+      clock_(clock),
+      processing_time_(clock != nullptr ? processing_time : 0.0) {
   const auto first = source_();
   if (!first) throw track::TrackError("tracking: the camera gave no first frame");
   publish(tracker_.start(first->left, first->right, first->t, seeds_right, first->index));
@@ -51,13 +55,16 @@ void TrackingMotionSource::run() {
     }
     if (!f) break;
     if (clock_) clock_->begin_work();
+    track::FrameResult r;
     try {
-      publish(tracker_.track(f->left, f->right, f->t, f->index));
+      r = tracker_.track(f->left, f->right, f->t, f->index);
     } catch (const std::exception& e) {
       // A bad frame (wrong size, unreadable) is predicted through, not fatal.
-      publish(tracker_.skip(f->t, f->index, e.what()));
+      r = tracker_.skip(f->t, f->index, e.what());
     }
     if (clock_) clock_->end_work();
+    if (processing_time_ > 0.0) clock_->sleep_for(processing_time_);  // the modelled board's time
+    publish(r);
   }
   ended_ = true;
 }

@@ -149,6 +149,15 @@ void RobotSimulator::inject_drive_fault() {
   publish_status(now);
 }
 
+void RobotSimulator::clear_fault() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double now = clock_.now();
+  step(now);
+  if (state_ == rl::State::kStopped || state_ == rl::State::kFault) state_ = rl::State::kIdle;
+  faults_ = 0;
+  publish_status(now);
+}
+
 std::vector<TipSample> RobotSimulator::trajectory() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return trajectory_;

@@ -14,7 +14,7 @@
 // After each trial the e-stop is released and the valve must stay closed until the
 // supervisor is reset.
 //
-// Usage: gpio_sim_estop [board.yaml] [trials]   (default: the qemu/virt-aarch64 board, 20)
+// Usage: gpio_sim_estop [board.yaml] [trials]   (default: the qemu/virt-aarch64-guest board, 20)
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -210,7 +210,8 @@ int run(const std::string& board_path, int trials) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::string board = argc > 1 ? argv[1] : DENTMARK_SOURCE_DIR "/boards/qemu/virt-aarch64/board.yaml";
+  const std::string board =
+      argc > 1 ? argv[1] : DENTMARK_SOURCE_DIR "/boards/qemu/virt-aarch64-guest/board.yaml";
   const int trials = argc > 2 ? std::atoi(argv[2]) : 20;
   if (trials < 1) {
     std::printf("fail: trials must be >= 1, got '%s'\n", argv[2]);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "../support/rig_calibration.h"
+#include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/simulation/workcell.h"
 #include "dentmark/firmware/station/tracking_motion_source.h"
 #include "dentmark/sim/stereo/panel_motion.h"
@@ -60,6 +61,59 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   const Transform since_scan = source.predict(1.0) * at_scan.inverse();
   const Transform true_since = line.motion(1.0);
   EXPECT_LT((since_scan.translation() - true_since.translation()).norm(), 0.8e-3);
+}
+
+TEST(TrackingMotionSource, EachEstimateComesOutTheModelledProcessingTimeAfterItsFrame) {
+  // On the twin's lock-step clock the tracker's own work takes no time; the target
+  // board's processing time is charged instead: frames at 0.1 k s, 30 ms per frame, so
+  // 20 ms after a frame the newest estimate is still the previous frame's, 40 ms after
+  // it is this frame's.
+  simulation::ScenarioOptions scenario;
+  scenario.position = 'A';
+  scenario.width = 640, scenario.height = 512, scenario.focal_px = 870.0;
+  const simulation::Workcell cell = simulation::make_workcell(scenario, Transform::Identity(), 1.0, 0.8);
+  const sim::stereo::StereoRenderer renderer(cell.rig, cell.door);
+  clock::LockstepClock clock(0.0);
+  constexpr double kPeriod = 0.1, kProcessing = 0.03;
+  constexpr int kFrames = 8;
+  long k = 0;
+  cv::RNG rng(3);
+  StereoFrameSource frames = [&]() -> std::optional<StereoFrame> {
+    if (k >= kFrames) return std::nullopt;
+    StereoFrame f;
+    f.t = kPeriod * static_cast<double>(k);
+    f.index = k++;
+    clock.sleep_until(f.t);  // the cameras expose at their rate
+    const Transform pose = cell.motion.T_camL_panel(f.t);
+    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
+    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
+    return f;
+  };
+  std::vector<cv::Point2f> seeds;
+  for (const auto& q : renderer.door().features) {
+    const cv::Point2d p =
+        renderer.project(sim::stereo::Eye::kRight, cell.motion.T_camL_panel(0.0), {q.x(), q.y(), 0.0});
+    seeds.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  }
+  TrackingMotionSource source(test::exact_calibration(cell.rig), seeds, frames, {}, &clock, kProcessing);
+  std::vector<std::pair<double, double>> seen;  // (when asked, frame time of the newest estimate)
+  clock::ParticipantThread observer(clock, [&] {
+    for (int i = 1; i < kFrames; ++i)
+      for (double after : {0.02, 0.04}) {
+        clock.sleep_until(kPeriod * i + after);
+        const auto e = source.latest();
+        seen.emplace_back(clock.now(), e ? e->t : -1.0);
+      }
+  });
+  clock.resume();
+  observer.join();
+  source.stop();
+  ASSERT_EQ(seen.size(), 2u * (kFrames - 1));
+  for (std::size_t i = 0; i < seen.size(); ++i) {
+    const int frame = static_cast<int>(i / 2) + 1;
+    const double expected = kPeriod * (i % 2 == 0 ? frame - 1 : frame);
+    EXPECT_NEAR(seen[i].second, expected, 1e-9) << "asked at t = " << seen[i].first;
+  }
 }
 
 }  // namespace

@@ -38,6 +38,7 @@ class MockRobot final : public hal::Robot {
   }
   std::uint16_t abort() override {
     ++aborts;
+    aborted_at = clock_.now();
     state_ = robot_link::State::kStopped;
     return ++seq_;
   }
@@ -60,6 +61,7 @@ class MockRobot final : public hal::Robot {
   };
   std::vector<Spray> sprays;
   int aborts = 0;
+  double aborted_at = -1.0;  // clock time of the last abort
 
  private:
   void update() {

@@ -120,6 +120,31 @@ TEST(JobRunner, LostTrackingSkipsInsteadOfGuessing) {
   EXPECT_TRUE(robot.sprays.empty());
 }
 
+TEST(JobRunner, LostTrackingDuringTheApproachStopsTheToolThere) {
+  // The tool is on its way to a defect where the tracker predicted it when the tracker
+  // loses the panel: the tool is stopped at the next poll, not sent on along a stale
+  // prediction, and the job ends with the rest failed / tracking_lost.
+  clock::SimClock clock;
+  JobConfig cfg = config();
+  MockRobot robot(clock, cfg.planner.limits);
+  MockSafety safety(clock);
+  LineMotion motion(clock, 0.014);
+  motion.lost_from = 0.2;  // the first approach takes longer than that
+  JobRunner runner(robot, safety, motion, clock, cfg);
+  const auto report = runner.run(list_of({{0.1, 0.0}, {0.2, 0.0}}), 0.0);
+  EXPECT_EQ(runner.state(), protocol::EdgeState::kSafe);
+  ASSERT_EQ(report.marks.size(), 2u);
+  for (const auto& m : report.marks) {
+    EXPECT_EQ(m.outcome, MarkOutcome::kFailed);
+    EXPECT_EQ(m.reason, MarkReason::kTrackingLost);
+  }
+  EXPECT_TRUE(robot.sprays.empty());
+  EXPECT_EQ(robot.aborts, 1);
+  EXPECT_GE(robot.aborted_at, 0.2);
+  EXPECT_LE(robot.aborted_at, 0.2 + 2 * cfg.poll_period);
+  EXPECT_FALSE(safety.valve_open);
+}
+
 TEST(JobRunner, RefusesToMarkWhenTheTrackerIsUnsure) {
   clock::SimClock clock;
   JobConfig cfg = config();

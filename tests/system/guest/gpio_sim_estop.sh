@@ -7,4 +7,4 @@ set -u
 src="$1" build="$2"
 modprobe gpio-sim || exit 1
 mountpoint -q /sys/kernel/config || mount -t configfs configfs /sys/kernel/config || exit 1
-exec "$build/tests/hal/gpio_sim_estop" "$src/boards/qemu/virt-aarch64/board.yaml" 50
+exec "$build/tests/hal/gpio_sim_estop" "$src/boards/qemu/virt-aarch64-guest/board.yaml" 50

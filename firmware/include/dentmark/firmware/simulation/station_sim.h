@@ -8,6 +8,7 @@
 // where the defect truly was at that instant.
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,21 @@ struct MarkError {
   int truth_index = -1;        // matched truth defect (-1: the mark has no true defect)
   double t_spray = 0.0;        // s after the scan
   Eigen::Vector3d error_base;  // true tip − (true defect + standoff · normal), base axes, m
+};
+
+// The job the twin sends after the first one has ended (SimulationOptions::next_job):
+// the same door scanned again where it then is, under the next job id.
+struct NextJobResult {
+  double t_scan = 0.0;            // s: when it was scanned and sent (time stood still meanwhile)
+  protocol::MarkReport report;    // as the host received it, in the list's defect order
+  std::vector<MarkError> errors;  // one per spray of this job matched to a true defect
+  int defects_sent = 0;
+  int marked = 0;
+  bool valve_open_at_end = false;
+  int valve_pulses = 0;  // valve openings from t_scan on
+  int unmatched_marks = 0;
+  Eigen::Vector3d mean_abs = Eigen::Vector3d::Zero();  // m
+  Eigen::Vector3d max_abs = Eigen::Vector3d::Zero();
 };
 
 struct ScenarioResult {
@@ -62,6 +78,16 @@ struct ScenarioResult {
   // braking and watchdog), not this machine's speed.
   double fault_time = -1.0;
   double valve_closed_after = -1.0, robot_still_after = -1.0, reported_after = -1.0;
+  // How long after the injection the station gave up on the panel (its first report of
+  // a defect tracking_lost: the job runner's tracking check failed); negative when none.
+  double detected_after = -1.0;
+  // What the station was doing when the first fault came: spraying (valve line high),
+  // moving (the tool's speed, m/s), or neither.
+  bool valve_open_at_fault = false;
+  double robot_speed_at_fault = 0.0;
+  // The figures above (valve_pulses, errors, ...) are the first job's; with
+  // SimulationOptions::next_job, the second job's are here.
+  std::optional<NextJobResult> next_job;
 };
 
 // A fault the twin injects, `after` seconds after marking starts.
@@ -87,6 +113,11 @@ struct SimulationOptions {
   double lighting = 0.2;     // relative gain swing over 40 s
   // Use the true motion instead of the tracker (isolates tracking from the rest).
   bool truth_motion = false;
+  // The target board's time to track one stereo frame, charged on the twin's clock
+  // (CameraTrackingConfig::frame_processing_time): each estimate comes out this long
+  // after the tracker took its frame up. 20 ms: 9 times the 2.2 ms one x86 core takes
+  // for a 1280x1024 pair (docs/tracking.md), a Cortex-A53-class core's share.
+  double frame_processing_time = 0.020;
   // Faults injected while the station marks (dentmark-edge simulate --fault KIND@T).
   std::vector<Fault> faults;
   std::string board_file;  // the twin's board (empty: boards/sim/twin/board.yaml of this source tree)
@@ -102,6 +133,12 @@ struct SimulationOptions {
   bool serve = false;
   int serve_port = 0;
   double serve_timeout = 300.0;  // s (real) to wait for the host's list
+  // After the first job has ended: every injected fault is cleared where it clears
+  // (the e-stop released, the robot link restored, the robot's own fault reset at the
+  // robot, the cameras back, the panel back in view) 0.5 s later; 1 s after that the
+  // host scans the door again where it then is and sends it as the next job
+  // (ScenarioResult::next_job). Not with serve.
+  bool next_job = false;
 };
 
 // Runs one scenario. Throws std::runtime_error when the simulation itself cannot run

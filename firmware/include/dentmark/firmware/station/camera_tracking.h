@@ -41,6 +41,9 @@ struct CameraTrackingConfig {
   double max_scan_gap = 0.3;         // s: the kept pair nearest the scan must be this close
   double max_skew = 0.002;           // s between a pair's left and right exposures
   double grab_timeout = 1.0;         // s (real) without a pair before the cameras count as lost
+  // s of simulated time charged per tracked frame (TrackingMotionSource): the twin's
+  // model of the target board's tracking time. 0 on a real clock, where it is real.
+  double frame_processing_time = 0.0;
   track::TrackerOptions tracker;
   track::ModelSearchOptions search;
 };

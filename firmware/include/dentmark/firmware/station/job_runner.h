@@ -98,11 +98,14 @@ class JobRunner {
   void mark_remaining(std::vector<Target>& remaining, const plan::MotionPredictor& since_scan,
                       Outcomes& outcomes);
   protocol::Mark mark_one(const Target& target, const plan::MotionPredictor& since_scan);
-  hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time);
+  // Towards the panel (tracked: a tracking loss during the move stops the tool and ends
+  // the job, JobAbort tracking_lost) or away from it (untracked).
+  enum class Toward { kPanel, kAway };
+  hal::RobotStatus move_and_wait(const Transform& T_base_tool, double planned_time, Toward toward);
   // Robot::wait_done with the interlocks checked in every poll.
   // Throws JobAbort (robot fault) when the robot is faulted or stopped.
   static void check_robot(const hal::RobotStatus& s);
-  hal::RobotStatus wait_robot(std::uint16_t sequence, double timeout);
+  hal::RobotStatus wait_robot(std::uint16_t sequence, double timeout, bool tracked = false);
   Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
                                 double t) const;
   bool tracking_ok();

@@ -37,10 +37,12 @@ class TrackingMotionSource final : public MotionSource {
   // Starts the tracker on the source's first frame with rough camR seeds; throws
   // track::TrackError when that fails. Then tracks in a thread until stop().
   // 'clock' (may be null) brackets each frame's tracking with begin_work()/end_work():
-  // on the twin's clock tracking then takes no simulated time (clock.h).
+  // on the twin's clock tracking then takes no simulated time (clock.h). A modelled
+  // 'processing_time' (s, > 0 only on a simulated clock) is charged on the clock instead:
+  // each frame's estimate is published that long after the tracker took the frame up.
   TrackingMotionSource(track::StereoCalibration calibration, std::vector<cv::Point2f> seeds_right,
                        StereoFrameSource frames, track::TrackerOptions options = {},
-                       clock::Clock* clock = nullptr);
+                       clock::Clock* clock = nullptr, double processing_time = 0.0);
   ~TrackingMotionSource() override;
   TrackingMotionSource(const TrackingMotionSource&) = delete;
   TrackingMotionSource& operator=(const TrackingMotionSource&) = delete;
@@ -60,6 +62,7 @@ class TrackingMotionSource final : public MotionSource {
   track::Tracker tracker_;
   StereoFrameSource source_;
   clock::Clock* clock_ = nullptr;
+  double processing_time_ = 0.0;
   clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
   std::atomic<bool> stop_{false};
   std::atomic<bool> ended_{false};

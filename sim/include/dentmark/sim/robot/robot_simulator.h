@@ -94,6 +94,9 @@ class RobotSimulator {
   // The robot's own fault now (a drive fault): it brakes, closes the sprayer and reports
   // state stopped with fault::kDrive until a reset.
   void inject_drive_fault();
+  // The robot's operator clears its own fault at the robot (the pendant's reset, which
+  // the station never sends for a drive fault): state idle, no fault bits.
+  void clear_fault();
 
   // Observation (thread-safe snapshots).
   std::vector<TipSample> trajectory() const;
