@@ -66,97 +66,120 @@ std::uint64_t header_count(TextCursor& cur, const char* what) {
   return static_cast<std::uint64_t>(n);
 }
 
-PcdHeader parse_header(const std::string& path, std::string_view bytes) {
-  PcdHeader h;
-  TextCursor cur(path, bytes);
-  bool have_size = false, have_type = false, have_width = false, have_points = false;
-  while (true) {
-    cur.skip_space();
-    if (cur.at_end()) cur.fail("the header ends without a 'DATA' line");
-    if (*cur.pos() == '#') {
-      cur.next_line();
-      continue;
-    }
-    const std::string_view key = cur.word();
-    if (key == "VERSION") {
-      cur.word();
-    } else if (key == "FIELDS" || key == "COLUMNS") {
-      if (!h.fields.empty()) cur.fail("a second 'FIELDS' line");
-      while (!cur.at_eol()) h.fields.push_back(Field{std::string(cur.word())});
-      if (h.fields.empty()) cur.fail("'FIELDS' names no field");
-    } else if (key == "SIZE") {
-      const auto words = per_field_words(cur, key, h.fields.size());
-      for (std::size_t f = 0; f < words.size(); ++f) {
-        if (words[f] != "1" && words[f] != "2" && words[f] != "4" && words[f] != "8")
-          cur.fail("field '" + h.fields[f].name + "': SIZE '" + std::string(words[f]) + "' (1, 2, 4 or 8)");
-        h.fields[f].size = static_cast<std::size_t>(words[f][0] - '0');
-      }
-      have_size = true;
-    } else if (key == "TYPE") {
-      const auto words = per_field_words(cur, key, h.fields.size());
-      for (std::size_t f = 0; f < words.size(); ++f) {
-        if (words[f] != "I" && words[f] != "U" && words[f] != "F")
-          cur.fail("field '" + h.fields[f].name + "': TYPE '" + std::string(words[f]) + "' (I, U or F)");
-        h.fields[f].type = words[f][0];
-      }
-      have_type = true;
-    } else if (key == "COUNT") {
-      const auto words = per_field_words(cur, key, h.fields.size());
-      for (std::size_t f = 0; f < words.size(); ++f) {
-        std::size_t n = 0;
-        const auto r = std::from_chars(words[f].data(), words[f].data() + words[f].size(), n);
-        if (r.ec != std::errc() || r.ptr != words[f].data() + words[f].size() || n < 1 || n > 65536)
-          cur.fail("field '" + h.fields[f].name + "': COUNT '" + std::string(words[f]) + "' (1 to 65536)");
-        h.fields[f].count = n;
-      }
-    } else if (key == "WIDTH") {
-      h.width = header_count(cur, "WIDTH");
-      have_width = true;
-    } else if (key == "HEIGHT") {
-      h.height = header_count(cur, "HEIGHT");
-    } else if (key == "VIEWPOINT") {
-      for (int k = 0; k < 7; ++k) cur.number("VIEWPOINT (tx ty tz qw qx qy qz)");
-    } else if (key == "POINTS") {
-      h.points = header_count(cur, "POINTS");
-      have_points = true;
-    } else if (key == "DATA") {
-      h.data_line = cur.line();
-      const std::string_view d = cur.word();
-      if (d == "ascii")
-        h.data = Data::kAscii;
-      else if (d == "binary")
-        h.data = Data::kBinary;
-      else if (d == "binary_compressed")
-        h.data = Data::kCompressed;
-      else
-        cur.fail("DATA '" + std::string(d) + "' (ascii, binary or binary_compressed)");
-      if (!cur.at_eol()) cur.fail("extra words after 'DATA " + std::string(d) + "'");
-      cur.next_line();
-      h.body = static_cast<std::size_t>(cur.pos() - bytes.data());
-      break;
-    } else {
-      cur.fail("unknown PCD header keyword '" + std::string(key.substr(0, 32)) + "'");
-    }
-    if (!cur.at_eol()) cur.fail("extra values after '" + std::string(key) + "'");
-    cur.next_line();
+// The header's keywords seen so far that are required, or change a default.
+struct HeaderSeen {
+  bool size = false, type = false, width = false, points = false;
+};
+
+// SIZE: each field's bytes, 1, 2, 4 or 8.
+void read_sizes(TextCursor& cur, PcdHeader& h) {
+  const auto words = per_field_words(cur, "SIZE", h.fields.size());
+  for (std::size_t f = 0; f < words.size(); ++f) {
+    if (words[f] != "1" && words[f] != "2" && words[f] != "4" && words[f] != "8")
+      cur.fail("field '" + h.fields[f].name + "': SIZE '" + std::string(words[f]) + "' (1, 2, 4 or 8)");
+    h.fields[f].size = static_cast<std::size_t>(words[f][0] - '0');
   }
+}
+
+// TYPE: each field's I (signed), U (unsigned) or F (floating point).
+void read_types(TextCursor& cur, PcdHeader& h) {
+  const auto words = per_field_words(cur, "TYPE", h.fields.size());
+  for (std::size_t f = 0; f < words.size(); ++f) {
+    if (words[f] != "I" && words[f] != "U" && words[f] != "F")
+      cur.fail("field '" + h.fields[f].name + "': TYPE '" + std::string(words[f]) + "' (I, U or F)");
+    h.fields[f].type = words[f][0];
+  }
+}
+
+// COUNT: each field's values a point, 1 to 65536.
+void read_counts(TextCursor& cur, PcdHeader& h) {
+  const auto words = per_field_words(cur, "COUNT", h.fields.size());
+  for (std::size_t f = 0; f < words.size(); ++f) {
+    std::size_t n = 0;
+    const auto r = std::from_chars(words[f].data(), words[f].data() + words[f].size(), n);
+    if (r.ec != std::errc() || r.ptr != words[f].data() + words[f].size() || n < 1 || n > 65536)
+      cur.fail("field '" + h.fields[f].name + "': COUNT '" + std::string(words[f]) + "' (1 to 65536)");
+    h.fields[f].count = n;
+  }
+}
+
+// DATA, the header's last line: the body's encoding and where it starts.
+void read_data_line(TextCursor& cur, std::string_view bytes, PcdHeader& h) {
+  h.data_line = cur.line();
+  const std::string_view d = cur.word();
+  if (d == "ascii")
+    h.data = Data::kAscii;
+  else if (d == "binary")
+    h.data = Data::kBinary;
+  else if (d == "binary_compressed")
+    h.data = Data::kCompressed;
+  else
+    cur.fail("DATA '" + std::string(d) + "' (ascii, binary or binary_compressed)");
+  if (!cur.at_eol()) cur.fail("extra words after 'DATA " + std::string(d) + "'");
+  cur.next_line();
+  h.body = static_cast<std::size_t>(cur.pos() - bytes.data());
+}
+
+// One keyword line (the cursor at its keyword) into h; false on DATA, the last line.
+// Fails naming the line on an unknown keyword, a bad value or extra values.
+bool read_header_line(TextCursor& cur, std::string_view bytes, PcdHeader& h, HeaderSeen& seen) {
+  const std::string_view key = cur.word();
+  if (key == "VERSION") {
+    cur.word();
+  } else if (key == "FIELDS" || key == "COLUMNS") {
+    if (!h.fields.empty()) cur.fail("a second 'FIELDS' line");
+    while (!cur.at_eol()) h.fields.push_back(Field{std::string(cur.word())});
+    if (h.fields.empty()) cur.fail("'FIELDS' names no field");
+  } else if (key == "SIZE") {
+    read_sizes(cur, h);
+    seen.size = true;
+  } else if (key == "TYPE") {
+    read_types(cur, h);
+    seen.type = true;
+  } else if (key == "COUNT") {
+    read_counts(cur, h);
+  } else if (key == "WIDTH") {
+    h.width = header_count(cur, "WIDTH");
+    seen.width = true;
+  } else if (key == "HEIGHT") {
+    h.height = header_count(cur, "HEIGHT");
+  } else if (key == "VIEWPOINT") {
+    for (int k = 0; k < 7; ++k) cur.number("VIEWPOINT (tx ty tz qw qx qy qz)");
+  } else if (key == "POINTS") {
+    h.points = header_count(cur, "POINTS");
+    seen.points = true;
+  } else if (key == "DATA") {
+    read_data_line(cur, bytes, h);
+    return false;
+  } else {
+    cur.fail("unknown PCD header keyword '" + std::string(key.substr(0, 32)) + "'");
+  }
+  if (!cur.at_eol()) cur.fail("extra values after '" + std::string(key) + "'");
+  cur.next_line();
+  return true;
+}
+
+// The header as a whole, once DATA is read: the required lines were there, the sizes and
+// counts agree, and x, y and z are fields of one value each (their indices into h.xyz).
+// Fails naming the DATA line.
+void check_header(const std::string& path, const HeaderSeen& seen, PcdHeader& h) {
   const auto fail = [&](const std::string& problem) {
     throw IngestError(path + ": line " + std::to_string(h.data_line) + ": " + problem);
   };
   if (h.fields.empty()) fail("no 'FIELDS' line before 'DATA'");
-  if (!have_size) fail("no 'SIZE' line before 'DATA'");
-  if (!have_type) fail("no 'TYPE' line before 'DATA'");
+  if (!seen.size) fail("no 'SIZE' line before 'DATA'");
+  if (!seen.type) fail("no 'TYPE' line before 'DATA'");
   for (const Field& f : h.fields)
     if (f.type == 'F' && f.size != 4 && f.size != 8)
       fail("field '" + f.name + "': TYPE F with SIZE " + std::to_string(f.size) + " (4 or 8)");
   std::size_t record = 0;
   for (const Field& f : h.fields) record += f.size * f.count;
   if (record > (1u << 20)) fail("a point of " + std::to_string(record) + " bytes (at most 1 MiB)");
-  if (!have_width) fail("no 'WIDTH' line before 'DATA'");
+  if (!seen.width) fail("no 'WIDTH' line before 'DATA'");
   if (h.width * h.height > std::numeric_limits<std::uint32_t>::max() - 1)
     fail("WIDTH x HEIGHT " + std::to_string(h.width) + " x " + std::to_string(h.height) +
          ": at most 2^32 - 2 points are supported");
-  if (!have_points) h.points = h.width * h.height;
+  if (!seen.points) h.points = h.width * h.height;
   if (h.points != h.width * h.height)
     fail("POINTS " + std::to_string(h.points) + " is not WIDTH x HEIGHT = " + std::to_string(h.width) +
          " x " + std::to_string(h.height));
@@ -170,6 +193,23 @@ PcdHeader parse_header(const std::string& path, std::string_view bytes) {
       }
   for (int a = 0; a < 3; ++a)
     if (h.xyz[a] < 0) fail(std::string("no field '") + kAxis[a] + "' in FIELDS");
+}
+
+// The header's keyword lines ('#' lines are comments) up to DATA, then checked whole.
+PcdHeader parse_header(const std::string& path, std::string_view bytes) {
+  PcdHeader h;
+  HeaderSeen seen;
+  TextCursor cur(path, bytes);
+  while (true) {
+    cur.skip_space();
+    if (cur.at_end()) cur.fail("the header ends without a 'DATA' line");
+    if (*cur.pos() == '#') {
+      cur.next_line();
+      continue;
+    }
+    if (!read_header_line(cur, bytes, h, seen)) break;
+  }
+  check_header(path, seen, h);
   return h;
 }
 

@@ -271,92 +271,246 @@ long long ascii_index(TextCursor& cur, Scalar type, const char* what) {
   return static_cast<long long>(v);
 }
 
-}  // namespace
+// --- The stages of read_ply: the header, then an ascii or a binary body ---
 
-Mesh read_ply(const std::string& path, std::string_view bytes) {
-  const PlyHeader header = parse_header(path, bytes);
-  const std::vector<Element>& elements = header.elements;
-  const std::size_t body = header.body;
-  Mesh mesh;
-  // The vertex count the header declares (the body is checked to hold them all).
-  std::uint64_t vertex_count = 0;
-  for (const Element& e : elements)
-    if (e.name == "vertex") {
-      vertex_count = e.count;
-      break;
+// One ascii element's records, a line each: a vertex's x, y, z (other values read and
+// left), a face's corner list (vertex_indices or vertex_index) into 'faces', any other
+// list's numbers read and left.
+void read_ascii_element(TextCursor& cur, const Element& e, std::uint64_t can_hold, Mesh& mesh,
+                        FaceSink& faces) {
+  int ix = -1, iy = -1, iz = -1, ilist = -1;
+  for (std::size_t k = 0; k < e.properties.size(); ++k) {
+    const auto& n = e.properties[k].name;
+    if (e.name == "vertex" && !e.properties[k].is_list) {
+      if (n == "x") ix = static_cast<int>(k);
+      if (n == "y") iy = static_cast<int>(k);
+      if (n == "z") iz = static_cast<int>(k);
     }
-  FaceSink faces(mesh, path, vertex_count);
-  const bool swap = (header.encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
-
-  if (header.encoding == Encoding::kAscii) {
-    TextCursor cur(path, bytes.substr(body), header.lines + 1);
-    for (const Element& e : elements) {
-      int ix = -1, iy = -1, iz = -1, ilist = -1;
-      for (std::size_t k = 0; k < e.properties.size(); ++k) {
-        const auto& n = e.properties[k].name;
-        if (e.name == "vertex" && !e.properties[k].is_list) {
-          if (n == "x") ix = static_cast<int>(k);
-          if (n == "y") iy = static_cast<int>(k);
-          if (n == "z") iz = static_cast<int>(k);
-        }
-        if (e.name == "face" && e.properties[k].is_list && (n == "vertex_indices" || n == "vertex_index"))
-          ilist = static_cast<int>(k);
-      }
-      // A record takes at least two bytes ("0\n"): a header that claims more than the file
-      // can hold is reported where the file ends, not by a failed allocation.
-      const std::uint64_t can_hold = (bytes.size() - body) / 2;
-      if (e.name == "vertex") mesh.vertices.reserve(std::min(e.count, can_hold));
-      if (e.name == "face") mesh.triangles.reserve(std::min(e.count, can_hold));
-      for (std::uint64_t r = 0; r < e.count; ++r) {
-        cur.skip_space();
-        if (cur.at_end())
-          cur.fail("file ends inside element '" + e.name + "' (" + std::to_string(r) + " of " +
-                   std::to_string(e.count) + " read)");
-        double xyz[3] = {0, 0, 0};
-        for (std::size_t k = 0; k < e.properties.size(); ++k) {
-          const Property& p = e.properties[k];
-          if (p.is_list) {
-            const long long n = ascii_index(cur, p.count_type, "list count");
-            if (n < 0 || n > 1'000'000) cur.fail("bad list count " + std::to_string(n));
-            const bool take = static_cast<int>(k) == ilist;
-            if (take) {
-              faces.begin();
-              for (long long j = 0; j < n; ++j)
-                faces.corner(ascii_index(cur, p.type, "vertex index"), "line " + std::to_string(cur.line()));
-              faces.end();
-            } else {  // any other list (MeshLab's 'list uchar float texcoord'): numbers of its type
-              for (long long j = 0; j < n; ++j) cur.number(p.name.c_str());
-            }
-          } else {
-            const double v = cur.number(p.name.c_str());
-            if (static_cast<int>(k) == ix) xyz[0] = v;
-            if (static_cast<int>(k) == iy) xyz[1] = v;
-            if (static_cast<int>(k) == iz) xyz[2] = v;
-          }
-        }
-        if (!cur.at_eol()) cur.fail("extra values at the end of a '" + e.name + "' line");
-        if (e.name == "vertex")
-          mesh.vertices.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
-                                     static_cast<float>(xyz[2]));
-        cur.next_line();
-      }
-    }
-    cur.skip_space();
-    if (!cur.at_end())
-      cur.fail("text after the last element" +
-               (elements.empty() ? std::string() : " '" + elements.back().name + "'") +
-               ": the header's element counts do not match the body");
-    return mesh;
+    if (e.name == "face" && e.properties[k].is_list && (n == "vertex_indices" || n == "vertex_index"))
+      ilist = static_cast<int>(k);
   }
+  if (e.name == "vertex") mesh.vertices.reserve(std::min(e.count, can_hold));
+  if (e.name == "face") mesh.triangles.reserve(std::min(e.count, can_hold));
+  for (std::uint64_t r = 0; r < e.count; ++r) {
+    cur.skip_space();
+    if (cur.at_end())
+      cur.fail("file ends inside element '" + e.name + "' (" + std::to_string(r) + " of " +
+               std::to_string(e.count) + " read)");
+    double xyz[3] = {0, 0, 0};
+    for (std::size_t k = 0; k < e.properties.size(); ++k) {
+      const Property& p = e.properties[k];
+      if (p.is_list) {
+        const long long n = ascii_index(cur, p.count_type, "list count");
+        if (n < 0 || n > 1'000'000) cur.fail("bad list count " + std::to_string(n));
+        const bool take = static_cast<int>(k) == ilist;
+        if (take) {
+          faces.begin();
+          for (long long j = 0; j < n; ++j)
+            faces.corner(ascii_index(cur, p.type, "vertex index"), "line " + std::to_string(cur.line()));
+          faces.end();
+        } else {  // any other list (MeshLab's 'list uchar float texcoord'): numbers of its type
+          for (long long j = 0; j < n; ++j) cur.number(p.name.c_str());
+        }
+      } else {
+        const double v = cur.number(p.name.c_str());
+        if (static_cast<int>(k) == ix) xyz[0] = v;
+        if (static_cast<int>(k) == iy) xyz[1] = v;
+        if (static_cast<int>(k) == iz) xyz[2] = v;
+      }
+    }
+    if (!cur.at_eol()) cur.fail("extra values at the end of a '" + e.name + "' line");
+    if (e.name == "vertex")
+      mesh.vertices.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                                 static_cast<float>(xyz[2]));
+    cur.next_line();
+  }
+}
 
-  // --- binary ---
-  const char* const base = bytes.data();
-  std::size_t off = body;
-  const std::size_t size = bytes.size();
-  auto need = [&](std::size_t n, const std::string& what) {
+// An ascii body: every element in the header's order, and nothing after the last one.
+void read_ascii_body(const std::string& path, std::string_view bytes, const PlyHeader& header, Mesh& mesh,
+                     FaceSink& faces) {
+  TextCursor cur(path, bytes.substr(header.body), header.lines + 1);
+  // A record takes at least two bytes ("0\n"): a header that claims more than the file
+  // can hold is reported where the file ends, not by a failed allocation.
+  const std::uint64_t can_hold = (bytes.size() - header.body) / 2;
+  for (const Element& e : header.elements) read_ascii_element(cur, e, can_hold, mesh, faces);
+  cur.skip_space();
+  if (!cur.at_end())
+    cur.fail("text after the last element" +
+             (header.elements.empty() ? std::string() : " '" + header.elements.back().name + "'") +
+             ": the header's element counts do not match the body");
+}
+
+// A binary body being read: the bytes, where the next element starts, and their order.
+struct BinaryBody {
+  const std::string& path;
+  const char* base;
+  std::size_t size;
+  std::size_t off;
+  bool swap;  // the file's byte order is not this machine's
+  // Fails naming the byte when fewer than n bytes are left for 'what'.
+  void need(std::size_t n, const std::string& what) const {
     if (n > size - off)
       throw IngestError(path + ": byte " + std::to_string(off) + ": file ends inside " + what);
-  };
+  }
+};
+
+// The vertex element (fixed size, 'stride' bytes a record): x, y and z of any scalar
+// type, side by side; float x, y, z in this machine's order with plain loads.
+void read_binary_vertices(BinaryBody& b, const Element& e, std::size_t stride, Mesh& mesh) {
+  std::size_t ox = SIZE_MAX, oy = SIZE_MAX, oz = SIZE_MAX, o = 0;
+  Scalar tx = Scalar::kF32, ty = tx, tz = tx;
+  for (const auto& p : e.properties) {
+    if (p.name == "x") ox = o, tx = p.type;
+    if (p.name == "y") oy = o, ty = p.type;
+    if (p.name == "z") oz = o, tz = p.type;
+    o += scalar_size(p.type);
+  }
+  const std::size_t size = b.size, off = b.off;
+  if (stride != 0 && e.count > (size - off) / stride)
+    throw IngestError(b.path + ": byte " + std::to_string(off + (size - off) / stride * stride) +
+                      ": file ends inside vertex " + std::to_string((size - off) / stride) + " of " +
+                      std::to_string(e.count));
+  const std::size_t n = static_cast<std::size_t>(e.count);
+  mesh.vertices.resize(n);
+  const char* src = b.base + off;
+  const bool swap = b.swap;
+  const bool fast = !swap && tx == Scalar::kF32 && ty == Scalar::kF32 && tz == Scalar::kF32;
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < n; ++i) {
+    const char* r = src + i * stride;
+    if (fast) {
+      float v[3];
+      std::memcpy(&v[0], r + ox, 4);
+      std::memcpy(&v[1], r + oy, 4);
+      std::memcpy(&v[2], r + oz, 4);
+      mesh.vertices[i] = Eigen::Vector3f(v[0], v[1], v[2]);
+    } else {
+      mesh.vertices[i] = Eigen::Vector3f(static_cast<float>(load_scalar(r + ox, tx, swap)),
+                                         static_cast<float>(load_scalar(r + oy, ty, swap)),
+                                         static_cast<float>(load_scalar(r + oz, tz, swap)));
+    }
+  }
+  b.off += n * stride;
+}
+
+// The typical scanner's face block, the file's last element: a single list of exactly 3
+// corners a face (count type ct, index type it), 'rec' bytes a face, filling what is left
+// of the file. Checked and decoded side by side; true when every record is a valid
+// triangle, else the mesh's triangles are left empty for the general path.
+bool read_triangle_block(BinaryBody& b, const Element& e, Scalar ct, Scalar it, std::uint64_t nv,
+                         Mesh& mesh) {
+  const std::size_t cs = scalar_size(ct), is = scalar_size(it), rec = cs + 3 * is;
+  const bool swap = b.swap;
+  const char* src = b.base + b.off;
+  const auto count = static_cast<std::int64_t>(e.count);
+  std::int64_t bad = count;  // first record that is not a valid triangle
+  mesh.triangles.resize(static_cast<std::size_t>(count));
+  // The usual scanner layout (uchar count, 32-bit indices, native byte order) is
+  // read with plain loads; anything else through the typed loader.
+  const bool native32 = !swap && ct == Scalar::kU8 && (it == Scalar::kI32 || it == Scalar::kU32);
+  if (native32) {
+#pragma omp parallel for schedule(static) reduction(min : bad)
+    for (std::int64_t r = 0; r < count; ++r) {
+      std::uint32_t v[3];
+      if (!triangle_record(src + r * static_cast<std::int64_t>(rec), nv, it == Scalar::kI32, v)) {
+        bad = std::min(bad, r);
+        continue;
+      }
+      mesh.triangles[static_cast<std::size_t>(r)] = {v[0], v[1], v[2]};
+    }
+  } else {
+#pragma omp parallel for schedule(static) reduction(min : bad)
+    for (std::int64_t r = 0; r < count; ++r) {
+      const char* q = src + r * static_cast<std::int64_t>(rec);
+      const std::int64_t a = load_index(q + cs, it, swap), b1 = load_index(q + cs + is, it, swap),
+                         c = load_index(q + cs + 2 * is, it, swap);
+      if (load_index(q, ct, swap) != 3 || a < 0 || b1 < 0 || c < 0 || static_cast<std::uint64_t>(a) >= nv ||
+          static_cast<std::uint64_t>(b1) >= nv || static_cast<std::uint64_t>(c) >= nv) {
+        bad = std::min(bad, r);
+        continue;
+      }
+      mesh.triangles[static_cast<std::size_t>(r)] = {
+          static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b1), static_cast<std::uint32_t>(c)};
+    }
+  }
+  if (bad == count) {
+    b.off = b.size;
+    return true;
+  }
+  mesh.triangles.clear();  // not the simple layout after all: take the general path
+  return false;
+}
+
+// An element with list properties, record by record: a face's corner list (vertex_indices
+// or vertex_index) into 'faces', everything else stepped over. 'simple' (a face element of
+// one list): a triangle is taken in one step, anything else property by property.
+void read_binary_list_element(BinaryBody& b, const Element& e, bool simple, std::uint64_t nv, Mesh& mesh,
+                              FaceSink& faces) {
+  const bool is_face = e.name == "face";
+  const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;
+  const std::size_t cs = scalar_size(ct), is = scalar_size(it);
+  const char* const base = b.base;
+  const std::size_t size = b.size;
+  std::size_t& off = b.off;
+  const bool swap = b.swap;
+  for (std::uint64_t r = 0; r < e.count; ++r) {
+    if (simple) {
+      if (cs > size - off) b.need(cs, "face " + std::to_string(r));
+      const std::int64_t n = load_index(base + off, ct, swap);
+      if (n == 3 && 3 * is + cs <= size - off) {
+        const char* q = base + off + cs;
+        const std::int64_t a = load_index(q, it, swap), b1 = load_index(q + is, it, swap),
+                           c = load_index(q + 2 * is, it, swap);
+        if (a >= 0 && b1 >= 0 && c >= 0 && static_cast<std::uint64_t>(a) < nv &&
+            static_cast<std::uint64_t>(b1) < nv && static_cast<std::uint64_t>(c) < nv) {
+          mesh.triangles.push_back(
+              {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b1), static_cast<std::uint32_t>(c)});
+          off += cs + 3 * is;
+          continue;
+        }
+      }
+    }
+    // General path: walk each property.
+    for (const Property& p : e.properties) {
+      if (!p.is_list) {
+        b.need(scalar_size(p.type), "element '" + e.name + "' " + std::to_string(r));
+        off += scalar_size(p.type);
+        continue;
+      }
+      const std::size_t at = off;
+      b.need(scalar_size(p.count_type), "element '" + e.name + "' " + std::to_string(r));
+      const std::int64_t n = load_index(base + off, p.count_type, swap);
+      if (n < 0 || n > 1'000'000)
+        throw IngestError(b.path + ": byte " + std::to_string(at) + ": bad list count " + std::to_string(n));
+      off += scalar_size(p.count_type);
+      b.need(static_cast<std::size_t>(n) * scalar_size(p.type),
+             "element '" + e.name + "' " + std::to_string(r));
+      const bool take = is_face && (p.name == "vertex_indices" || p.name == "vertex_index");
+      // No writer stores a face without corners; a zero count is what the bytes of an
+      // index (high bytes 0) give when the body is read out of step with the header.
+      if (take && n == 0)
+        throw IngestError(b.path + ": byte " + std::to_string(at) + ": face " + std::to_string(r) +
+                          " has no corners: the header's element counts do not match the body");
+      if (take) faces.begin();
+      for (std::int64_t j = 0; j < n; ++j) {
+        if (take) faces.corner(load_index(base + off, p.type, swap), "byte " + std::to_string(off));
+        off += scalar_size(p.type);
+      }
+      if (take) faces.end();
+    }
+  }
+}
+
+// A binary body: each element by its layout (the vertices; other fixed-size elements
+// skipped in one step; the face block; any element with lists), and nothing after the
+// last one.
+void read_binary_body(const std::string& path, std::string_view bytes, const PlyHeader& header,
+                      std::uint64_t vertex_count, Mesh& mesh, FaceSink& faces) {
+  const std::vector<Element>& elements = header.elements;
+  const bool swap = (header.encoding == Encoding::kBig) != (std::endian::native == std::endian::big);
+  BinaryBody b{path, bytes.data(), bytes.size(), header.body, swap};
+  const std::size_t size = b.size;
   for (const Element& e : elements) {
     bool fixed = true;
     std::size_t stride = 0;
@@ -370,153 +524,55 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
       if (!fixed)
         throw IngestError(path + ": line " + std::to_string(e.line) +
                           ": a binary 'vertex' element with list properties is not supported");
-      std::size_t ox = SIZE_MAX, oy = SIZE_MAX, oz = SIZE_MAX, o = 0;
-      Scalar tx = Scalar::kF32, ty = tx, tz = tx;
-      for (const auto& p : e.properties) {
-        if (p.name == "x") ox = o, tx = p.type;
-        if (p.name == "y") oy = o, ty = p.type;
-        if (p.name == "z") oz = o, tz = p.type;
-        o += scalar_size(p.type);
-      }
-      if (stride != 0 && e.count > (size - off) / stride)
-        throw IngestError(path + ": byte " + std::to_string(off + (size - off) / stride * stride) +
-                          ": file ends inside vertex " + std::to_string((size - off) / stride) + " of " +
-                          std::to_string(e.count));
-      const std::size_t n = static_cast<std::size_t>(e.count);
-      mesh.vertices.resize(n);
-      const char* src = base + off;
-      const bool fast = !swap && tx == Scalar::kF32 && ty == Scalar::kF32 && tz == Scalar::kF32;
-#pragma omp parallel for schedule(static)
-      for (std::size_t i = 0; i < n; ++i) {
-        const char* r = src + i * stride;
-        if (fast) {
-          float v[3];
-          std::memcpy(&v[0], r + ox, 4);
-          std::memcpy(&v[1], r + oy, 4);
-          std::memcpy(&v[2], r + oz, 4);
-          mesh.vertices[i] = Eigen::Vector3f(v[0], v[1], v[2]);
-        } else {
-          mesh.vertices[i] = Eigen::Vector3f(static_cast<float>(load_scalar(r + ox, tx, swap)),
-                                             static_cast<float>(load_scalar(r + oy, ty, swap)),
-                                             static_cast<float>(load_scalar(r + oz, tz, swap)));
-        }
-      }
-      off += n * stride;
+      read_binary_vertices(b, e, stride, mesh);
       continue;
     }
     if (fixed) {  // skip a fixed-size element in one step
-      if (stride != 0 && e.count > (size - off) / stride)
+      if (stride != 0 && e.count > (size - b.off) / stride)
         throw IngestError(path + ": byte " + std::to_string(size) + ": file ends inside element '" + e.name +
                           "'");
-      off += static_cast<std::size_t>(e.count) * stride;
+      b.off += static_cast<std::size_t>(e.count) * stride;
       continue;
     }
     const bool is_face = e.name == "face";
-    if (is_face) mesh.triangles.reserve(std::min<std::uint64_t>(e.count, size - off));  // a record: >= 1 byte
+    if (is_face)
+      mesh.triangles.reserve(std::min<std::uint64_t>(e.count, size - b.off));  // a record: >= 1 byte
     // Common layout first: a single list property of uchar/int counts with 3 corners.
     const bool simple = is_face && e.properties.size() == 1 && e.properties[0].is_list;
     const Scalar ct = e.properties[0].count_type, it = e.properties[0].type;
-    const std::size_t cs = scalar_size(ct), is = scalar_size(it);
-    const std::uint64_t nv = vertex_count;
-    // Fast path: all-triangle face block whose size fits exactly in what is left
-    // (typical scanner output): checked and decoded in parallel.
-    const std::size_t rec = cs + 3 * is;
-    if (simple && &e == &elements.back() && e.count > 0 && (size - off) / rec == e.count &&
-        (size - off) % rec == 0) {
-      const char* src = base + off;
-      const auto count = static_cast<std::int64_t>(e.count);
-      std::int64_t bad = count;  // first record that is not a valid triangle
-      mesh.triangles.resize(static_cast<std::size_t>(count));
-      // The usual scanner layout (uchar count, 32-bit indices, native byte order) is
-      // read with plain loads; anything else through the typed loader.
-      const bool native32 = !swap && ct == Scalar::kU8 && (it == Scalar::kI32 || it == Scalar::kU32);
-      if (native32) {
-#pragma omp parallel for schedule(static) reduction(min : bad)
-        for (std::int64_t r = 0; r < count; ++r) {
-          std::uint32_t v[3];
-          if (!triangle_record(src + r * static_cast<std::int64_t>(rec), nv, it == Scalar::kI32, v)) {
-            bad = std::min(bad, r);
-            continue;
-          }
-          mesh.triangles[static_cast<std::size_t>(r)] = {v[0], v[1], v[2]};
-        }
-      } else {
-#pragma omp parallel for schedule(static) reduction(min : bad)
-        for (std::int64_t r = 0; r < count; ++r) {
-          const char* q = src + r * static_cast<std::int64_t>(rec);
-          const std::int64_t a = load_index(q + cs, it, swap), b = load_index(q + cs + is, it, swap),
-                             c = load_index(q + cs + 2 * is, it, swap);
-          if (load_index(q, ct, swap) != 3 || a < 0 || b < 0 || c < 0 ||
-              static_cast<std::uint64_t>(a) >= nv || static_cast<std::uint64_t>(b) >= nv ||
-              static_cast<std::uint64_t>(c) >= nv) {
-            bad = std::min(bad, r);
-            continue;
-          }
-          mesh.triangles[static_cast<std::size_t>(r)] = {
-              static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(c)};
-        }
-      }
-      if (bad == count) {
-        off = size;
-        continue;
-      }
-      mesh.triangles.clear();  // not the simple layout after all: take the general path
-    }
-    for (std::uint64_t r = 0; r < e.count; ++r) {
-      if (simple) {
-        if (cs > size - off) need(cs, "face " + std::to_string(r));
-        const std::int64_t n = load_index(base + off, ct, swap);
-        if (n == 3 && 3 * is + cs <= size - off) {
-          const char* q = base + off + cs;
-          const std::int64_t a = load_index(q, it, swap), b = load_index(q + is, it, swap),
-                             c = load_index(q + 2 * is, it, swap);
-          if (a >= 0 && b >= 0 && c >= 0 && static_cast<std::uint64_t>(a) < nv &&
-              static_cast<std::uint64_t>(b) < nv && static_cast<std::uint64_t>(c) < nv) {
-            mesh.triangles.push_back({static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b),
-                                      static_cast<std::uint32_t>(c)});
-            off += cs + 3 * is;
-            continue;
-          }
-        }
-      }
-      // General path: walk each property.
-      for (const Property& p : e.properties) {
-        if (!p.is_list) {
-          need(scalar_size(p.type), "element '" + e.name + "' " + std::to_string(r));
-          off += scalar_size(p.type);
-          continue;
-        }
-        const std::size_t at = off;
-        need(scalar_size(p.count_type), "element '" + e.name + "' " + std::to_string(r));
-        const std::int64_t n = load_index(base + off, p.count_type, swap);
-        if (n < 0 || n > 1'000'000)
-          throw IngestError(path + ": byte " + std::to_string(at) + ": bad list count " + std::to_string(n));
-        off += scalar_size(p.count_type);
-        need(static_cast<std::size_t>(n) * scalar_size(p.type),
-             "element '" + e.name + "' " + std::to_string(r));
-        const bool take = is_face && (p.name == "vertex_indices" || p.name == "vertex_index");
-        // No writer stores a face without corners; a zero count is what the bytes of an
-        // index (high bytes 0) give when the body is read out of step with the header.
-        if (take && n == 0)
-          throw IngestError(path + ": byte " + std::to_string(at) + ": face " + std::to_string(r) +
-                            " has no corners: the header's element counts do not match the body");
-        if (take) faces.begin();
-        for (std::int64_t j = 0; j < n; ++j) {
-          if (take) faces.corner(load_index(base + off, p.type, swap), "byte " + std::to_string(off));
-          off += scalar_size(p.type);
-        }
-        if (take) faces.end();
-      }
-    }
+    const std::size_t rec = scalar_size(ct) + 3 * scalar_size(it);
+    if (simple && &e == &elements.back() && e.count > 0 && (size - b.off) / rec == e.count &&
+        (size - b.off) % rec == 0 && read_triangle_block(b, e, ct, it, vertex_count, mesh))
+      continue;
+    read_binary_list_element(b, e, simple, vertex_count, mesh, faces);
   }
   // The body must end where the declared elements end: more bytes mean the counts are
   // wrong (too few faces declared, a vertex too many, ...), and the mesh read is not the
   // file's.
-  if (off != size)
-    throw IngestError(path + ": byte " + std::to_string(off) + ": " + std::to_string(size - off) +
+  if (b.off != size)
+    throw IngestError(path + ": byte " + std::to_string(b.off) + ": " + std::to_string(size - b.off) +
                       " bytes after the last element" +
                       (elements.empty() ? std::string() : " '" + elements.back().name + "'") +
                       ": the header's element counts do not match the body");
+}
+
+}  // namespace
+
+Mesh read_ply(const std::string& path, std::string_view bytes) {
+  const PlyHeader header = parse_header(path, bytes);
+  Mesh mesh;
+  // The vertex count the header declares (the body is checked to hold them all).
+  std::uint64_t vertex_count = 0;
+  for (const Element& e : header.elements)
+    if (e.name == "vertex") {
+      vertex_count = e.count;
+      break;
+    }
+  FaceSink faces(mesh, path, vertex_count);
+  if (header.encoding == Encoding::kAscii)
+    read_ascii_body(path, bytes, header, mesh, faces);
+  else
+    read_binary_body(path, bytes, header, vertex_count, mesh, faces);
   return mesh;
 }
 

@@ -30,7 +30,7 @@ std::unique_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice
 std::unique_ptr<Robot> make_robot(const board::BoardConfig& board, const HalChoice& choice,
                                   clock::Clock& clock) {
   if (choice.simulate) {
-    sim::RobotSimConfig cfg;
+    sim::robot::RobotSimConfig cfg;
     cfg.workspace_min = board.limits.workspace_min;
     cfg.workspace_max = board.limits.workspace_max;
     cfg.max_speed = board.limits.max_speed;

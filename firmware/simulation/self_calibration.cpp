@@ -47,7 +47,7 @@ void put(std::ostringstream& o, const cv::Mat& m) {
   for (int i = 0; i < static_cast<int>(d.total()); ++i) o << ' ' << d.at<double>(i);
 }
 
-std::string station_text(const Workcell& cell, const sim::RobotSimConfig& robot) {
+std::string station_text(const Workcell& cell, const sim::robot::RobotSimConfig& robot) {
   std::ostringstream o;
   o.precision(12);
   o << "v2 " << kVersion << ' ' << cell.rig.size.width << 'x' << cell.rig.size.height;
@@ -82,8 +82,8 @@ struct Scratch {
 
 // Step 1: 16 rendered pairs of a 9×6, 80 mm board, then `calibrate stereo`.
 void calibrate_stereo_step(const Workcell& cell, const fs::path& out, const fs::path& work) {
-  const sim::ChessboardTarget board{9, 6, 0.08};
-  const sim::ChessboardRenderer renderer(cell.rig, board);
+  const sim::calibration::ChessboardTarget board{9, 6, 0.08};
+  const sim::calibration::ChessboardRenderer renderer(cell.rig, board);
   const Eigen::Vector3d centre_board(0.5 * (board.cols - 1) * board.square,
                                      0.5 * (board.rows - 1) * board.square, 0.0);
   // Where both cameras look: the door's track at 2.8 m.
@@ -91,7 +91,7 @@ void calibrate_stereo_step(const Workcell& cell, const fs::path& out, const fs::
   std::mt19937_64 rng(4242);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   cv::RNG noise(99);
-  const sim::TargetImaging imaging;
+  const sim::calibration::TargetImaging imaging;
   for (int k = 1; k <= 16; ++k) {
     const Eigen::Matrix3d r = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() *
                               make_transform_rotvec(Eigen::Vector3d(0.5 * u(rng), 0.5 * u(rng), 0.4 * u(rng)),
@@ -102,9 +102,9 @@ void calibrate_stereo_step(const Workcell& cell, const fs::path& out, const fs::
     char name[32];
     std::snprintf(name, sizeof name, "%02d.png", k);
     image::write_png((work / (std::string("left") + name)).string(),
-                     renderer.render(stereo::Eye::kLeft, T, imaging, noise));
+                     renderer.render(sim::stereo::Eye::kLeft, T, imaging, noise));
     image::write_png((work / (std::string("right") + name)).string(),
-                     renderer.render(stereo::Eye::kRight, T, imaging, noise));
+                     renderer.render(sim::stereo::Eye::kRight, T, imaging, noise));
   }
   calibrate::StereoCalibrationRun run = calibrate::calibrate_stereo_images(
       work, calibrate::parse_target("chessboard:9x6", board.square, 0.0, ""));
@@ -115,15 +115,15 @@ void calibrate_stereo_step(const Workcell& cell, const fs::path& out, const fs::
 
 // Step 2: `calibrate robot` live against a robot simulator of the scenario's robot.
 void calibrate_robot_step(const Workcell& cell, board::BoardConfig board,
-                          const sim::RobotSimConfig& robot_config, const fs::path& stereo_yaml,
+                          const sim::robot::RobotSimConfig& robot_config, const fs::path& stereo_yaml,
                           const fs::path& out) {
   clock::Clock& clock = clock::monotonic_clock();
-  sim::RobotSimConfig rc = robot_config;
+  sim::robot::RobotSimConfig rc = robot_config;
   rc.heartbeat_timeout = 2.0;
-  auto robot_sim = sim::RobotSimulator::serve_tcp(rc, clock);
+  auto robot_sim = sim::robot::RobotSimulator::serve_tcp(rc, clock);
   board.modbus.host = "127.0.0.1";
   board.modbus.port = robot_sim->port();
-  sim::CalibrationScene scene = sim::twin_calibration_scene();
+  sim::calibration::CalibrationScene scene = sim::calibration::twin_calibration_scene();
   scene.rig = cell.rig;
   scene.T_base_camL = cell.T_base_camL_true;
   const track::StereoCalibration stereo = track::load_stereo_calibration(stereo_yaml);
@@ -132,7 +132,7 @@ void calibrate_robot_step(const Workcell& cell, board::BoardConfig board,
       "chessboard:" + std::to_string(scene.target.cols) + "x" + std::to_string(scene.target.rows),
       scene.target.square, 0.0, "");
   target.T_tool_target = scene.T_tool_target;  // the mount's drawing
-  sim::RobotSimulator* truth = robot_sim.get();
+  sim::robot::RobotSimulator* truth = robot_sim.get();
   const auto devices = open_calibration_devices(board, scene, clock, [truth] { return truth->true_pose(); });
   calibrate::TargetRig rig(*devices->robot, *devices->left, *devices->right, clock, stereo, target);
   rig.connect();
@@ -179,10 +179,10 @@ void step(const char* name, F&& f) {
 
 }  // namespace
 
-void render_scanner_captures(const stereo::StereoRig& rig, const Transform& T_camL_sls,
+void render_scanner_captures(const sim::stereo::StereoRig& rig, const Transform& T_camL_sls,
                              const Eigen::Vector3d& centre, int captures, std::uint64_t seed,
                              const fs::path& dir, const fs::path& target_yaml) {
-  const sim::SphereTarget target = sim::twin_sphere_target();
+  const sim::calibration::SphereTarget target = sim::calibration::twin_sphere_target();
   calibrate::ScannerTarget drawing;
   drawing.board = calibrate::parse_target(
       "chessboard:" + std::to_string(target.board.cols) + "x" + std::to_string(target.board.rows),
@@ -190,7 +190,7 @@ void render_scanner_captures(const stereo::StereoRig& rig, const Transform& T_ca
   drawing.sphere_radius_m = target.sphere_radius;
   drawing.spheres_board = target.spheres_board;
   calibrate::write_scanner_target(target_yaml, drawing);
-  const sim::ChessboardRenderer renderer(rig, target.board);
+  const sim::calibration::ChessboardRenderer renderer(rig, target.board);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   cv::RNG cv_rng(seed);
@@ -206,23 +206,23 @@ void render_scanner_captures(const stereo::StereoRig& rig, const Transform& T_ca
     const Eigen::Vector3d c = centre + Eigen::Vector3d(0.1 * u(rng), 0.08 * u(rng), 0.1 * u(rng));
     const Transform T_camL_board = make_transform(r, c - r * centre_board);
     const std::string n = std::to_string(k);
-    const sim::TargetImaging imaging;
+    const sim::calibration::TargetImaging imaging;
     image::write_png((dir / ("left" + n + ".png")).string(),
-                     renderer.render(stereo::Eye::kLeft, T_camL_board, imaging, cv_rng));
+                     renderer.render(sim::stereo::Eye::kLeft, T_camL_board, imaging, cv_rng));
     image::write_png((dir / ("right" + n + ".png")).string(),
-                     renderer.render(stereo::Eye::kRight, T_camL_board, imaging, cv_rng));
-    sim::SlsImaging sls;
+                     renderer.render(sim::stereo::Eye::kRight, T_camL_board, imaging, cv_rng));
+    sim::calibration::SlsImaging sls;
     sls.spacing = 0.0015;
     sls.outlier_fraction = 0.002;
     sls.seed = seed * 100 + static_cast<std::uint64_t>(k);
     ingest::Mesh scan;
-    scan.vertices = sim::scan_sphere_target(target, T_camL_sls.inverse() * T_camL_board, sls);
+    scan.vertices = sim::calibration::scan_sphere_target(target, T_camL_sls.inverse() * T_camL_board, sls);
     ingest::write_ply((dir / ("scan" + n + ".ply")).string(), scan);
   }
 }
 
 SelfCalibrationResult self_calibrate(const Workcell& cell, const board::BoardConfig& board,
-                                     const sim::RobotSimConfig& robot, const fs::path& cache_dir) {
+                                     const sim::robot::RobotSimConfig& robot, const fs::path& cache_dir) {
   const std::string station_key = key_of(station_text(cell, robot));
   std::ostringstream s;
   s.precision(12);

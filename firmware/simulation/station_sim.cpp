@@ -54,7 +54,7 @@ std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t stream) {
 // The panel's true motion, as a perfect tracker would report it (diagnostics).
 class TruthMotion final : public station::MotionSource {
  public:
-  TruthMotion(const stereo::PanelMotion& motion, clock::Clock& clock, double t_scan)
+  TruthMotion(const sim::stereo::PanelMotion& motion, clock::Clock& clock, double t_scan)
       : motion_(motion), clock_(clock), T_scan_camL_(motion.T_camL_panel(t_scan).inverse()) {}
   std::optional<station::MotionEstimate> latest() override {
     station::MotionEstimate e;
@@ -69,21 +69,22 @@ class TruthMotion final : public station::MotionSource {
   Transform predict(double t) override { return motion_.T_camL_panel(t) * T_scan_camL_; }
 
  private:
-  const stereo::PanelMotion& motion_;
+  const sim::stereo::PanelMotion& motion_;
   clock::Clock& clock_;
   const Transform T_scan_camL_;  // the panel's pose at the scan, inverted
 };
 
 class TruthTracking final : public station::PanelTracking {
  public:
-  TruthTracking(const stereo::PanelMotion& motion, clock::Clock& clock) : motion_(motion), clock_(clock) {}
+  TruthTracking(const sim::stereo::PanelMotion& motion, clock::Clock& clock)
+      : motion_(motion), clock_(clock) {}
   std::optional<std::string> refuse(const protocol::DefectList&) override { return std::nullopt; }
   std::unique_ptr<station::MotionSource> start(const protocol::DefectList&, double t_scan) override {
     return std::make_unique<TruthMotion>(motion_, clock_, t_scan);
   }
 
  private:
-  const stereo::PanelMotion& motion_;
+  const sim::stereo::PanelMotion& motion_;
   clock::Clock& clock_;
 };
 
@@ -106,28 +107,28 @@ struct ScratchDir {
 // calibration, the robot and scanner transforms with the scenario's calibration
 // errors, and the door's panel model taught on the scan's frame.
 // With a self-calibration the three files are the ones the calibration commands made.
-void commission(const Workcell& cell, const stereo::StereoRenderer& renderer, const std::string& panel_id,
-                const fs::path& dir, const SelfCalibrationResult* self) {
+void commission(const Workcell& cell, const sim::stereo::StereoRenderer& renderer,
+                const std::string& panel_id, const fs::path& dir, const SelfCalibrationResult* self) {
   if (self != nullptr) {
     fs::copy_file(self->stereo_yaml, dir / "stereo.yaml", fs::copy_options::overwrite_existing);
     fs::copy_file(self->robot_yaml, dir / "robot.yaml", fs::copy_options::overwrite_existing);
     fs::copy_file(self->scanner_yaml, dir / "scanner.yaml", fs::copy_options::overwrite_existing);
   } else {
-    stereo::write_stereo_yaml(cell.rig, dir / "stereo.yaml");
+    sim::stereo::write_stereo_yaml(cell.rig, dir / "stereo.yaml");
     station::save_transform(dir / "robot.yaml", "T_base_camL", cell.T_base_camL_est, 0.0);
     station::save_transform(dir / "scanner.yaml", "T_camL_sls", cell.T_camL_sls_est, 0.0);
   }
   const Transform pose0 = cell.motion.T_camL_panel(0.0);
   cv::RNG rng(1);
-  const cv::Mat left = renderer.render(stereo::Eye::kLeft, pose0, {}, rng);
-  const cv::Mat right = renderer.render(stereo::Eye::kRight, pose0, {}, rng);
+  const cv::Mat left = renderer.render(sim::stereo::Eye::kLeft, pose0, {}, rng);
+  const cv::Mat right = renderer.render(sim::stereo::Eye::kRight, pose0, {}, rng);
   std::vector<Eigen::Vector3d> p_camL;
   std::vector<cv::Point2f> pl, pr;
   for (const auto& q : cell.door.features) {
     const Eigen::Vector3d p(q.x(), q.y(), 0.0);
     p_camL.push_back(pose0 * p);
-    const cv::Point2d a = renderer.project(stereo::Eye::kLeft, pose0, p);
-    const cv::Point2d b = renderer.project(stereo::Eye::kRight, pose0, p);
+    const cv::Point2d a = renderer.project(sim::stereo::Eye::kLeft, pose0, p);
+    const cv::Point2d b = renderer.project(sim::stereo::Eye::kRight, pose0, p);
     pl.emplace_back(static_cast<float>(a.x), static_cast<float>(a.y));
     pr.emplace_back(static_cast<float>(b.x), static_cast<float>(b.y));
   }
@@ -143,7 +144,7 @@ std::string twin_board_file(const SimulationOptions& sim) {
 // Scores each spray against the true defect nearest to what was sent for it.
 template <typename Result>
 void score(Result& result, const Workcell& cell, const protocol::DefectList& list, const ScanTruth& truth,
-           const std::vector<sim::SprayRecord>& sprays, double standoff) {
+           const std::vector<sim::robot::SprayRecord>& sprays, double standoff) {
   std::vector<protocol::Mark> marked;
   for (const protocol::Mark& m : result.report.marks)
     if (m.outcome == protocol::MarkOutcome::kMarked) marked.push_back(m);
@@ -151,7 +152,7 @@ void score(Result& result, const Workcell& cell, const protocol::DefectList& lis
   result.marked = static_cast<int>(marked.size());
   for (std::size_t k = 0; k < marked.size() && k < sprays.size(); ++k) {
     const protocol::Mark& m = marked[k];
-    const sim::SprayRecord& spray = sprays[k];
+    const sim::robot::SprayRecord& spray = sprays[k];
     const auto sent = std::find_if(list.defects.begin(), list.defects.end(),
                                    [&](const protocol::Defect& d) { return d.id == m.defect_id; });
     int best = -1;
@@ -233,11 +234,11 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
 // for good (ScenarioResult).
 void time_to_safe(ScenarioResult& result, double t_fault, double t_end,
                   const std::vector<hal::EdgeRecord>& edges, const std::string& valve,
-                  const std::vector<sim::TipSample>& tip) {
+                  const std::vector<sim::robot::TipSample>& tip) {
   result.fault_time = t_fault;
   for (const hal::EdgeRecord& e : edges)
     if (e.line == valve && e.time < t_fault) result.valve_open_at_fault = e.active;
-  for (const sim::TipSample& sample : tip)
+  for (const sim::robot::TipSample& sample : tip)
     if (sample.time < t_fault) result.robot_speed_at_fault = sample.speed;
   // The valve's last closing after the fault (it stays closed from then on).
   double closed = t_fault;
@@ -323,11 +324,11 @@ board::BoardConfig twin_board(const SimulationOptions& sim, const ScenarioOption
 
 // The robot: the workcell's limits and home, a fixed absolute accuracy error drawn from
 // the scenario's seed, and its repeatability.
-sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Workcell& cell,
-                                 const board::BoardConfig& board) {
+sim::robot::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Workcell& cell,
+                                        const board::BoardConfig& board) {
   std::mt19937_64 rng(scenario.seed);
   std::normal_distribution<double> unit(0.0, 1.0);
-  sim::RobotSimConfig c;
+  sim::robot::RobotSimConfig c;
   c.workspace_min = cell.workspace_min;
   c.workspace_max = cell.workspace_max;
   c.home = cell.robot_home;
@@ -346,7 +347,7 @@ sim::RobotSimConfig robot_config(const ScenarioOptions& scenario, const Workcell
 class DoorCameras {
  public:
   DoorCameras(const Workcell& cell, const ScenarioOptions& scenario, const SimulationOptions& sim,
-              sim::RobotSimulator& robot, clock::Clock& clock)
+              sim::robot::RobotSimulator& robot, clock::Clock& clock)
       : cell_(cell),
         renderer_(cell.rig, cell.door),
         scenario_(scenario),
@@ -354,15 +355,15 @@ class DoorCameras {
         robot_(robot),
         clock_(clock) {}
 
-  cv::Mat render(stereo::Eye eye, double t) const {
+  cv::Mat render(sim::stereo::Eye eye, double t) const {
     if (dead) return cv::Mat();  // the driver's error: no image
-    stereo::RenderConditions c;
+    sim::stereo::RenderConditions c;
     c.gain = 1.0 + sim_.lighting * std::sin(2.0 * std::numbers::pi * t / 40.0);
-    if (eye == stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
+    if (eye == sim::stereo::Eye::kRight) c.gain *= 0.96, c.offset = 3.0;
     if (sim_.arm_occludes) {
       const Transform T_camL_base = cell_.T_base_camL_true.inverse();
       const Transform tip = robot_.true_pose();
-      stereo::Occluder arm;
+      sim::stereo::Occluder arm;
       arm.a = T_camL_base * (tip.translation() - 0.12 * tip.linear().col(2));
       arm.b = T_camL_base * Eigen::Vector3d(-0.3, 0.9, 0.2);  // shoulder below the line (floor-mounted robot)
       arm.radius = 0.04;
@@ -370,7 +371,7 @@ class DoorCameras {
     }
     // Each frame's noise from its own seed: a frame is the same whichever thread asks first.
     const auto frame = static_cast<std::uint64_t>(std::llround(t * scenario_.fps));
-    cv::RNG noise(mix_seed(scenario_.seed, frame * 2u + (eye == stereo::Eye::kRight ? 1u : 0u)));
+    cv::RNG noise(mix_seed(scenario_.seed, frame * 2u + (eye == sim::stereo::Eye::kRight ? 1u : 0u)));
     Transform pose = cell_.motion.T_camL_panel(t);
     if (panel_gone) pose.translation().x() += 4.0;  // off the line: out of both views
     // Rendering takes no simulated time: the cameras expose at their rate whatever this
@@ -380,16 +381,16 @@ class DoorCameras {
     clock_.end_work();
     return image;
   }
-  const stereo::StereoRenderer& renderer() const { return renderer_; }
+  const sim::stereo::StereoRenderer& renderer() const { return renderer_; }
 
   std::atomic<bool> dead{false}, panel_gone{false};
 
  private:
   const Workcell& cell_;
-  const stereo::StereoRenderer renderer_;
+  const sim::stereo::StereoRenderer renderer_;
   const ScenarioOptions& scenario_;
   const SimulationOptions& sim_;
-  sim::RobotSimulator& robot_;
+  sim::robot::RobotSimulator& robot_;
   clock::Clock& clock_;
 };
 
@@ -420,7 +421,7 @@ bool line_wait_until(clock::Clock& clock, LineStop& stop, double t, bool or_job_
 
 // Clears an injected fault where it clears (SimulationOptions::next_job).
 void clear_fault(FaultKind kind, const board::BoardConfig& board, hal::SimGpio& gpio,
-                 sim::RobotSimulator& robot, DoorCameras& cameras) {
+                 sim::robot::RobotSimulator& robot, DoorCameras& cameras) {
   switch (kind) {
     case FaultKind::kEstop:
       gpio.drive(board.gpio.estop.name, false);
@@ -444,8 +445,8 @@ void clear_fault(FaultKind kind, const board::BoardConfig& board, hal::SimGpio& 
 // The next job's turn: once the first job is over, the faults are cleared, and then time
 // is held for the host to scan and send the next list.
 void prepare_next_job(const std::vector<Fault>& injected, const board::BoardConfig& board,
-                      clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::RobotSimulator& robot,
-                      DoorCameras& cameras) {
+                      clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio,
+                      sim::robot::RobotSimulator& robot, DoorCameras& cameras) {
   constexpr double kClearAfter = 0.5;  // s after the first job's end
   constexpr double kScanAfter = 1.0;   // s after the faults are cleared
   {
@@ -471,7 +472,7 @@ void prepare_next_job(const std::vector<Fault>& injected, const board::BoardConf
 // (part-present) at t_mark, and the scenario's faults come after; with a next job, they
 // are cleared after the first job and the door is made ready for its second scan.
 void run_line(const SimulationOptions& sim, const Workcell& cell, const board::BoardConfig& board,
-              clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::RobotSimulator& robot,
+              clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::robot::RobotSimulator& robot,
               DoorCameras& cameras) {
   std::vector<Fault> faults = sim.faults;
   std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
@@ -544,10 +545,10 @@ void note_valve(Result& result, const hal::SimGpio& gpio, const std::string& val
 }
 
 // The sprays from t_begin to t_end.
-std::vector<sim::SprayRecord> sprays_between(const std::vector<sim::SprayRecord>& sprays, double t_begin,
-                                             double t_end) {
-  std::vector<sim::SprayRecord> out;
-  for (const sim::SprayRecord& r : sprays)
+std::vector<sim::robot::SprayRecord> sprays_between(const std::vector<sim::robot::SprayRecord>& sprays,
+                                                    double t_begin, double t_end) {
+  std::vector<sim::robot::SprayRecord> out;
+  for (const sim::robot::SprayRecord& r : sprays)
     if (r.time >= t_begin && r.time < t_end) out.push_back(r);
   return out;
 }
@@ -605,7 +606,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   std::optional<SelfCalibrationResult> self;
   if (!sim.self_calibration_cache.empty())
     self = self_calibrate(cell, board, robot_config(scenario, cell, board), sim.self_calibration_cache);
-  auto robot_sim = sim::RobotSimulator::serve_tcp(robot_config(scenario, cell, board), clock);
+  auto robot_sim = sim::robot::RobotSimulator::serve_tcp(robot_config(scenario, cell, board), clock);
   board.modbus.host = "127.0.0.1";
   board.modbus.port = robot_sim->port();
   DoorCameras cameras(cell, scenario, sim, *robot_sim, clock);
@@ -633,8 +634,8 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     d.after_request = [&](const protocol::Decoded& req) {
       if (std::holds_alternative<protocol::DefectList>(req.message) && list_arrived) start_time();
     };
-  d.hal.render = [&cameras](double t) { return cameras.render(stereo::Eye::kLeft, t); };
-  d.hal.render_right = [&cameras](double t) { return cameras.render(stereo::Eye::kRight, t); };
+  d.hal.render = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kLeft, t); };
+  d.hal.render_right = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kRight, t); };
   d.hal.sim_frame_period = 1.0 / scenario.fps;
   d.station.job.planner.chain.standoff = scenario.standoff;
   d.station.firmware_version = "twin";
@@ -724,7 +725,7 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   }
   finish_run();
   const double t_next = next ? line_stop.t_next : std::numeric_limits<double>::infinity();
-  const std::vector<sim::SprayRecord> sprays = robot_sim->sprays();
+  const std::vector<sim::robot::SprayRecord> sprays = robot_sim->sprays();
   note_valve(result, gpio, board.gpio.sprayer_valve.name, 0.0, t_next);
   take_reports(result, list, outcome);
   score(result, cell, list, truth, sprays_between(sprays, 0.0, t_next), scenario.standoff);

@@ -23,8 +23,8 @@ Workcell make_workcell(const ScenarioOptions& o, const Transform& T_sls_scanpane
     throw std::invalid_argument("scenario position must be A, B or C");
   Workcell cell;
   const double toe_in = std::atan(0.5 * o.baseline / o.distance);
-  cell.rig = stereo::make_rig({o.width, o.height}, o.focal_px, o.baseline, toe_in);
-  cell.door = stereo::make_door();
+  cell.rig = sim::stereo::make_rig({o.width, o.height}, o.focal_px, o.baseline, toe_in);
+  cell.door = sim::stereo::make_door();
 
   // The sled turned by the paper's θ about the vertical (camL y) axis: both the door
   // and the direction it travels turn with it.

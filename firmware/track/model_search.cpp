@@ -95,14 +95,17 @@ struct Candidate {
   double score = 0.0;
 };
 
-}  // namespace
+// --- The stages of search_model ---
 
-ModelSearchResult search_model(const StereoCalibration& calib, const cv::Mat& left, const cv::Mat& right,
-                               const PanelModel& model, const ModelSearchOptions& o) {
+// Per taught feature, its candidate places in 3D: every pair of its peaks in the two
+// views (find_peaks) that triangulates within max_reprojection and 0.3-30 m away, best
+// score first, at most 8. The taught features are corners the pixels sit on; the patch's
+// grid offset is the model's pixel minus its rounded value.
+std::vector<std::vector<Candidate>> feature_candidates(const StereoCalibration& calib,
+                                                       const std::vector<cv::Mat>& pl,
+                                                       const std::vector<cv::Mat>& pr,
+                                                       const PanelModel& model, const ModelSearchOptions& o) {
   const std::size_t n = model.features.size();
-  const auto pl = model_pyramid(left, model.levels), pr = model_pyramid(right, model.levels);
-  // The taught features are corners the pixels sit on; the patch's grid offset is
-  // the model's pixel minus its rounded value.
   std::vector<std::vector<Candidate>> cands(n);
   for (std::size_t i = 0; i < n; ++i) {
     const ModelFeature& f = model.features[i];
@@ -123,118 +126,165 @@ ModelSearchResult search_model(const StereoCalibration& calib, const cv::Mat& le
               [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
     if (cands[i].size() > 8) cands[i].resize(8);
   }
+  return cands;
+}
 
-  const double f_px = 0.5 * (calib.left.K(0, 0) + calib.right.K(0, 0));
-  const double baseline = calib.T_camR_camL.translation().norm();
-  const auto tolerance = [&](double z) {
-    return std::max(o.min_tolerance, o.sigmas * z * z / (f_px * baseline) * o.match_noise);
-  };
-  const auto taught = [&](std::size_t i) { return model.features[i].p_camL; };
+// Consensus of a motion: per feature the candidate nearest to the moved taught point.
+struct Consensus {
+  std::vector<int> pick;  // candidate index per feature, -1: none
+  int count = 0;
+  double sq = 0.0;  // sum of the squared distances of the picks (m²)
+  bool better_than(const Consensus& b) const { return count > b.count || (count == b.count && sq < b.sq); }
+};
 
-  // Consensus of a motion: per feature the candidate nearest to the moved taught point.
-  struct Consensus {
-    std::vector<int> pick;  // candidate index per feature, -1: none
-    int count = 0;
-    double sq = 0.0;
-  };
-  const auto consensus_of = [&](const Transform& t) {
+// The candidates against the taught layout: how far a candidate may lie from where a
+// motion puts its feature (the stereo depth error at its depth, `sigmas` times, at least
+// min_tolerance), and which motions they agree on.
+class LayoutMatch {
+ public:
+  LayoutMatch(const StereoCalibration& calib, const PanelModel& model,
+              std::vector<std::vector<Candidate>>& cands, const ModelSearchOptions& o)
+      : model_(model),
+        cands_(cands),
+        o_(o),
+        f_px_(0.5 * (calib.left.K(0, 0) + calib.right.K(0, 0))),
+        baseline_(calib.T_camR_camL.translation().norm()) {}
+
+  double tolerance(double z) const {
+    return std::max(o_.min_tolerance, o_.sigmas * z * z / (f_px_ * baseline_) * o_.match_noise);
+  }
+  const Eigen::Vector3d& taught(std::size_t i) const { return model_.features[i].p_camL; }
+
+  Consensus consensus_of(const Transform& t) const {
+    const std::size_t n = cands_.size();
     Consensus c;
     c.pick.assign(n, -1);
     for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d x = t * taught(i);
       double best = tolerance(x.z());
-      for (std::size_t k = 0; k < cands[i].size(); ++k) {
-        const double d = (cands[i][k].p_camL - x).norm();
+      for (std::size_t k = 0; k < cands_[i].size(); ++k) {
+        const double d = (cands_[i][k].p_camL - x).norm();
         if (d <= best) best = d, c.pick[i] = static_cast<int>(k);
       }
       if (c.pick[i] >= 0) ++c.count, c.sq += best * best;
     }
     return c;
-  };
-  const auto better = [](const Consensus& a, const Consensus& b) {
-    return a.count > b.count || (a.count == b.count && a.sq < b.sq);
-  };
-  const auto agrees = [&](std::size_t i, const Candidate& ci, std::size_t j, const Candidate& cj) {
+  }
+
+  // Two candidates as far apart as their taught features, within tolerance.
+  bool agrees(std::size_t i, const Candidate& ci, std::size_t j, const Candidate& cj) const {
     const double d = std::abs((ci.p_camL - cj.p_camL).norm() - (taught(i) - taught(j)).norm());
     return d <= tolerance(std::max(ci.p_camL.z(), cj.p_camL.z()));
-  };
+  }
 
-  Consensus best;
-  Transform best_t = Transform::Identity();
-  for (std::size_t a = 0; a < n; ++a)
-    for (std::size_t b = a + 1; b < n; ++b)
-      for (std::size_t c = b + 1; c < n; ++c) {
-        if ((taught(b) - taught(a)).cross(taught(c) - taught(a)).norm() < 1e-4) continue;  // collinear
-        for (const Candidate& ca : cands[a])
-          for (const Candidate& cb : cands[b]) {
-            if (!agrees(a, ca, b, cb)) continue;
-            for (const Candidate& cc : cands[c]) {
-              if (!agrees(a, ca, c, cc) || !agrees(b, cb, c, cc)) continue;
-              const std::vector<Eigen::Vector3d> from{taught(a), taught(b), taught(c)},
-                  to{ca.p_camL, cb.p_camL, cc.p_camL};
-              try {
-                const Transform t = fit_rigid(from, to).T_to_from;
-                Consensus s = consensus_of(t);
-                if (better(s, best)) best = std::move(s), best_t = t;
-              } catch (const GeometryError&) {
+  // The motion with the largest consensus over every triplet of non-collinear features
+  // and every triplet of their candidates that agree pairwise.
+  void best_triplet(Consensus& best, Transform& best_t) const {
+    const std::size_t n = cands_.size();
+    for (std::size_t a = 0; a < n; ++a)
+      for (std::size_t b = a + 1; b < n; ++b)
+        for (std::size_t c = b + 1; c < n; ++c) {
+          if ((taught(b) - taught(a)).cross(taught(c) - taught(a)).norm() < 1e-4) continue;  // collinear
+          for (const Candidate& ca : cands_[a])
+            for (const Candidate& cb : cands_[b]) {
+              if (!agrees(a, ca, b, cb)) continue;
+              for (const Candidate& cc : cands_[c]) {
+                if (!agrees(a, ca, c, cc) || !agrees(b, cb, c, cc)) continue;
+                const std::vector<Eigen::Vector3d> from{taught(a), taught(b), taught(c)},
+                    to{ca.p_camL, cb.p_camL, cc.p_camL};
+                try {
+                  const Transform t = fit_rigid(from, to).T_to_from;
+                  Consensus s = consensus_of(t);
+                  if (s.better_than(best)) best = std::move(s), best_t = t;
+                } catch (const GeometryError&) {
+                }
               }
             }
-          }
-      }
+        }
+  }
 
-  const int need = std::max(4, static_cast<int>(std::ceil(o.min_share * static_cast<double>(n))));
-  // Polish on the whole consensus (a triplet's motion is only as good as its three points).
-  for (int it = 0; it < 2 && best.count >= 3; ++it) {
-    std::vector<Eigen::Vector3d> from, to;
-    for (std::size_t i = 0; i < n; ++i)
-      if (best.pick[i] >= 0)
-        from.push_back(taught(i)), to.push_back(cands[i][static_cast<std::size_t>(best.pick[i])].p_camL);
-    try {
-      const Transform t = fit_rigid(from, to).T_to_from;
-      Consensus s = consensus_of(t);
-      if (s.count < best.count) break;
-      best = std::move(s), best_t = t;
-    } catch (const GeometryError&) {
-      break;
+  // The motion refitted on the whole consensus, twice (a triplet's motion is only as good
+  // as its three points), kept while the consensus does not shrink.
+  void polish(Consensus& best, Transform& best_t) const {
+    const std::size_t n = cands_.size();
+    for (int it = 0; it < 2 && best.count >= 3; ++it) {
+      std::vector<Eigen::Vector3d> from, to;
+      for (std::size_t i = 0; i < n; ++i)
+        if (best.pick[i] >= 0)
+          from.push_back(taught(i)), to.push_back(cands_[i][static_cast<std::size_t>(best.pick[i])].p_camL);
+      try {
+        const Transform t = fit_rigid(from, to).T_to_from;
+        Consensus s = consensus_of(t);
+        if (s.count < best.count) break;
+        best = std::move(s), best_t = t;
+      } catch (const GeometryError&) {
+        break;
+      }
     }
   }
+
+  // Features the coarse search missed (near the border, where the coarse patch does not
+  // fit, or partly hidden): looked for with the finest templates where the motion puts
+  // them, and added to the consensus when both views agree with that place in 3D.
+  void recover_missed(const StereoCalibration& calib, const cv::Mat& left, const cv::Mat& right,
+                      const Transform& best_t, Consensus& best) {
+    for (std::size_t i = 0; i < cands_.size(); ++i) {
+      if (best.pick[i] >= 0) continue;
+      const ModelFeature& f = model_.features[i];
+      const Eigen::Vector3d x = best_t * taught(i);
+      const cv::Point2f gl = calib.project(Cam::kLeft, {x})[0], gr = calib.project(Cam::kRight, {x})[0];
+      auto look = [&](const cv::Mat& image, const cv::Mat& templ, const cv::Point2f& g,
+                      const cv::Point2f& taught_px) -> std::optional<cv::Point2f> {
+        const cv::Point2f off = taught_px - cv::Point2f(static_cast<float>(cvRound(taught_px.x)),
+                                                        static_cast<float>(cvRound(taught_px.y)));
+        cv::Mat score;
+        const auto m =
+            best_near(image, templ, cv::Point(cvRound(g.x - off.x), cvRound(g.y - off.y)), 4, &score);
+        if (!m || !(m->second >= o_.min_ncc)) return std::nullopt;
+        cv::Point loc;
+        cv::minMaxLoc(score, nullptr, nullptr, nullptr, &loc);
+        return cv::Point2f(static_cast<float>(m->first.x), static_cast<float>(m->first.y)) + off +
+               parabola_peak(score, loc) - cv::Point2f(static_cast<float>(loc.x), static_cast<float>(loc.y));
+      };
+      const auto l = look(left, f.left[0], gl, f.pixel_left);
+      const auto rr = l ? look(right, f.right[0], gr, f.pixel_right) : std::nullopt;
+      if (!rr) continue;
+      const Triangulation tri =
+          triangulate(calib, calib.normalize(Cam::kLeft, {*l})[0], calib.normalize(Cam::kRight, {*rr})[0]);
+      const double d = (tri.p_camL - x).norm();
+      if (tri.reprojection_px > o_.max_reprojection || d > tolerance(x.z())) continue;
+      cands_[i].push_back({tri.p_camL, *rr, 0.0});
+      best.pick[i] = static_cast<int>(cands_[i].size() - 1);
+      ++best.count;
+      best.sq += d * d;
+    }
+  }
+
+ private:
+  const PanelModel& model_;
+  std::vector<std::vector<Candidate>>& cands_;
+  const ModelSearchOptions& o_;
+  double f_px_, baseline_;
+};
+
+}  // namespace
+
+ModelSearchResult search_model(const StereoCalibration& calib, const cv::Mat& left, const cv::Mat& right,
+                               const PanelModel& model, const ModelSearchOptions& o) {
+  const std::size_t n = model.features.size();
+  const auto pl = model_pyramid(left, model.levels), pr = model_pyramid(right, model.levels);
+  std::vector<std::vector<Candidate>> cands = feature_candidates(calib, pl, pr, model, o);
+  LayoutMatch match(calib, model, cands, o);
+  Consensus best;
+  Transform best_t = Transform::Identity();
+  match.best_triplet(best, best_t);
+  const int need = std::max(4, static_cast<int>(std::ceil(o.min_share * static_cast<double>(n))));
+  match.polish(best, best_t);
   if (best.count < need)
     throw TrackError("panel model not found: at most " + std::to_string(best.count) + " of " +
                      std::to_string(n) + " taught features agree with the taught layout (need " +
                      std::to_string(need) + ")");
-  // Features the coarse search missed (near the border, where the coarse patch does not
-  // fit, or partly hidden): looked for with the finest templates where the consensus
-  // puts them, and kept when both views agree with that place in 3D.
-  for (std::size_t i = 0; i < n; ++i) {
-    if (best.pick[i] >= 0) continue;
-    const ModelFeature& f = model.features[i];
-    const Eigen::Vector3d x = best_t * taught(i);
-    const cv::Point2f gl = calib.project(Cam::kLeft, {x})[0], gr = calib.project(Cam::kRight, {x})[0];
-    auto look = [&](const cv::Mat& image, const cv::Mat& templ, const cv::Point2f& g,
-                    const cv::Point2f& taught_px) -> std::optional<cv::Point2f> {
-      const cv::Point2f off = taught_px - cv::Point2f(static_cast<float>(cvRound(taught_px.x)),
-                                                      static_cast<float>(cvRound(taught_px.y)));
-      cv::Mat score;
-      const auto m =
-          best_near(image, templ, cv::Point(cvRound(g.x - off.x), cvRound(g.y - off.y)), 4, &score);
-      if (!m || !(m->second >= o.min_ncc)) return std::nullopt;
-      cv::Point loc;
-      cv::minMaxLoc(score, nullptr, nullptr, nullptr, &loc);
-      return cv::Point2f(static_cast<float>(m->first.x), static_cast<float>(m->first.y)) + off +
-             parabola_peak(score, loc) - cv::Point2f(static_cast<float>(loc.x), static_cast<float>(loc.y));
-    };
-    const auto l = look(left, f.left[0], gl, f.pixel_left);
-    const auto rr = l ? look(right, f.right[0], gr, f.pixel_right) : std::nullopt;
-    if (!rr) continue;
-    const Triangulation tri =
-        triangulate(calib, calib.normalize(Cam::kLeft, {*l})[0], calib.normalize(Cam::kRight, {*rr})[0]);
-    const double d = (tri.p_camL - x).norm();
-    if (tri.reprojection_px > o.max_reprojection || d > tolerance(x.z())) continue;
-    cands[i].push_back({tri.p_camL, *rr, 0.0});
-    best.pick[i] = static_cast<int>(cands[i].size() - 1);
-    ++best.count;
-    best.sq += d * d;
-  }
+  match.recover_missed(calib, left, right, best_t, best);
   ModelSearchResult r;
   r.seeds_right.assign(n, std::nullopt);
   r.found = best.count;

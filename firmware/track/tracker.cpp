@@ -49,6 +49,72 @@ std::optional<cv::Point2f> find_near(const cv::Mat& grey, const GridTemplate& gr
   return c->position + grid.offset;
 }
 
+// --- The stages of Tracker::start ---
+
+// A seed that became a stereo feature of the first frame: its corner in each image and
+// its position in camL (m).
+struct SeedFeature {
+  int seed;  // index into the seeds
+  cv::Point2f l, r;
+  Eigen::Vector3d p;
+};
+
+// Each seed refined to a corner in camR, matched into camL and triangulated; kept when it
+// reprojects within max_reprojection and lies in front of the cameras. Two seeds that
+// snapped onto one corner give one feature.
+std::vector<SeedFeature> match_seeds(const StereoCalibration& calib, const TrackerOptions& opt,
+                                     const cv::Mat& right, const ImagePyramid& pl, const ImagePyramid& pr,
+                                     std::span<const cv::Point2f> seeds_right) {
+  std::vector<SeedFeature> found;
+  for (std::size_t k = 0; k < seeds_right.size(); ++k) {
+    const auto cr = refine_seed(right, seeds_right[k], opt.corner);
+    if (!cr) continue;
+    const auto m = match_right_to_left(calib, pr, pl, *cr, opt.stereo, opt.lk);
+    if (!m) continue;
+    const Triangulation tri =
+        triangulate(calib, calib.normalize(Cam::kLeft, {m->left})[0], calib.normalize(Cam::kRight, {*cr})[0]);
+    if (tri.reprojection_px > opt.max_reprojection || !(tri.p_camL.z() > 0)) continue;
+    const bool duplicate = std::any_of(found.begin(), found.end(),
+                                       [&](const SeedFeature& c) { return cv::norm(c.r - *cr) < 2.0; });
+    if (!duplicate) found.push_back({static_cast<int>(k), m->left, *cr, tri.p_camL});
+  }
+  return found;
+}
+
+// Features on one panel lie at similar depths; one under half or over twice the median
+// depth matched the wrong corner and is dropped.
+void drop_depth_outliers(std::vector<SeedFeature>& found) {
+  if (found.empty()) return;
+  std::vector<double> z;
+  for (const auto& c : found) z.push_back(c.p.z());
+  const double med = median_in_place(z);
+  std::erase_if(found, [&](const SeedFeature& c) { return c.p.z() < 0.5 * med || c.p.z() > 2.0 * med; });
+}
+
+// The camL positions again (two passes), with the camR patch seen as camL sees the
+// panel's plane (stereo_match.h: translation alone leaves 0.1-0.5 px of disparity error,
+// which the reference would keep for the whole run and which grows into motion error as
+// the viewing geometry changes with travel). A feature whose aligned match fails keeps
+// its previous corner and position.
+void align_on_panel_plane(const StereoCalibration& calib, const TrackerOptions& opt, const cv::Mat& left,
+                          const cv::Mat& right, std::vector<SeedFeature>& found) {
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Eigen::Vector3d> points;
+    for (const auto& f : found) points.push_back(f.p);
+    const auto normal = plane_normal(points);
+    if (!normal) break;
+    for (auto& f : found) {
+      const auto m = align_on_plane(calib, right, left, f.r, f.l, f.p, *normal, opt.stereo);
+      if (!m) continue;
+      const Triangulation tri = triangulate(calib, calib.normalize(Cam::kLeft, {m->left})[0],
+                                            calib.normalize(Cam::kRight, {f.r})[0]);
+      if (tri.reprojection_px > opt.max_reprojection || !(tri.p_camL.z() > 0)) continue;
+      f.l = m->left;
+      f.p = tri.p_camL;
+    }
+  }
+}
+
 }  // namespace
 
 double Tracker::expected_depth_error(double depth) const {
@@ -101,55 +167,14 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   check_size(right, calib_.size, "right");
   const ImagePyramid pl(left, opt_.lk), pr(right, opt_.lk);
 
-  struct Candidate {
-    int seed;
-    cv::Point2f l, r;
-    Eigen::Vector3d p;
-  };
-  std::vector<Candidate> found;
-  for (std::size_t k = 0; k < seeds_right.size(); ++k) {
-    const auto cr = refine_seed(right, seeds_right[k], opt_.corner);
-    if (!cr) continue;
-    const auto m = match_right_to_left(calib_, pr, pl, *cr, opt_.stereo, opt_.lk);
-    if (!m) continue;
-    const Triangulation tri = triangulate(calib_, calib_.normalize(Cam::kLeft, {m->left})[0],
-                                          calib_.normalize(Cam::kRight, {*cr})[0]);
-    if (tri.reprojection_px > opt_.max_reprojection || !(tri.p_camL.z() > 0)) continue;
-    // Two seeds that snapped onto one corner give one feature.
-    const bool duplicate = std::any_of(found.begin(), found.end(),
-                                       [&](const Candidate& c) { return cv::norm(c.r - *cr) < 2.0; });
-    if (!duplicate) found.push_back({static_cast<int>(k), m->left, *cr, tri.p_camL});
-  }
-  // Features on one panel lie at similar depths; a far-off one matched the wrong corner.
-  if (!found.empty()) {
-    std::vector<double> z;
-    for (const auto& c : found) z.push_back(c.p.z());
-    const double med = median_in_place(z);
-    std::erase_if(found, [&](const Candidate& c) { return c.p.z() < 0.5 * med || c.p.z() > 2.0 * med; });
-  }
-  // The camL positions again, with the camR patch seen as camL sees the panel's plane
-  // (stereo_match.h: translation alone leaves 0.1-0.5 px of disparity error, which the
-  // reference would keep for the whole run and which grows into motion error as the
-  // viewing geometry changes with travel).
-  for (int pass = 0; pass < 2; ++pass) {
-    std::vector<Eigen::Vector3d> points;
-    for (const auto& f : found) points.push_back(f.p);
-    const auto normal = plane_normal(points);
-    if (!normal) break;
-    for (auto& f : found) {
-      const auto m = align_on_plane(calib_, right, left, f.r, f.l, f.p, *normal, opt_.stereo);
-      if (!m) continue;
-      const Triangulation tri = triangulate(calib_, calib_.normalize(Cam::kLeft, {m->left})[0],
-                                            calib_.normalize(Cam::kRight, {f.r})[0]);
-      if (tri.reprojection_px > opt_.max_reprojection || !(tri.p_camL.z() > 0)) continue;
-      f.l = m->left;
-      f.p = tri.p_camL;
-    }
-  }
+  std::vector<SeedFeature> found = match_seeds(calib_, opt_, right, pl, pr, seeds_right);
+  drop_depth_outliers(found);
+  align_on_panel_plane(calib_, opt_, left, right, found);
   if (static_cast<int>(found.size()) < opt_.min_features)
     throw TrackError("only " + std::to_string(found.size()) + " of " + std::to_string(seeds_right.size()) +
                      " seeds gave usable stereo features (need " + std::to_string(opt_.min_features) + ")");
 
+  // The reference: each feature's camL position and its templates in both first images.
   reference_ = ReferenceBuffer();
   seed_of_feature_.clear();
   left_.clear();
@@ -168,6 +193,20 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   if (static_cast<int>(reference_.size()) < opt_.min_features)
     throw TrackError("only " + std::to_string(reference_.size()) +
                      " features lie far enough inside the images");
+  begin_run(left, right, pl, pr, t);
+
+  FrameResult r;
+  r.index = index;
+  r.t = t;
+  r.ok = true;
+  r.features = static_cast<int>(reference_.size());
+  r.quality =
+      static_cast<double>(found.size()) / static_cast<double>(std::max<std::size_t>(seeds_right.size(), 1));
+  return r;
+}
+
+void Tracker::begin_run(const cv::Mat& left, const cv::Mat& right, const ImagePyramid& pl,
+                        const ImagePyramid& pr, double t) {
   active_.assign(reference_.size(), true);
   first_left_ = left;
   first_right_ = right;
@@ -193,15 +232,6 @@ FrameResult Tracker::start(const cv::Mat& left_in, const cv::Mat& right_in, doub
   prev_right_ = pr;
   rms_ema_ = 0.0;
   started_ = true;
-
-  FrameResult r;
-  r.index = index;
-  r.t = t;
-  r.ok = true;
-  r.features = static_cast<int>(reference_.size());
-  r.quality =
-      static_cast<double>(found.size()) / static_cast<double>(std::max<std::size_t>(seeds_right.size(), 1));
-  return r;
 }
 
 bool Tracker::reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left,

@@ -1,5 +1,5 @@
 // `dentmark robot-sim`: the robot simulator as a Modbus TCP (or RTU) server
-// (docs/robot-modbus.md). Thin: parse, run sim::RobotSimulator, report.
+// (docs/robot-modbus.md). Thin: parse, run sim::robot::RobotSimulator, report.
 #include <signal.h>
 
 #include <cstdio>
@@ -51,7 +51,7 @@ int wait_for_stop(clock::Clock& clk, double duration) {
 }
 
 int run(const RobotSimOptions& o) {
-  sim::RobotSimConfig cfg;
+  sim::robot::RobotSimConfig cfg;
   cfg.heartbeat_timeout = o.heartbeat_timeout;
   cfg.repeatability = o.repeatability;
   cfg.max_speed = o.max_speed;
@@ -77,16 +77,16 @@ int run(const RobotSimOptions& o) {
     clk = std::make_unique<clock::MonotonicClock>();
   else
     clk = std::make_unique<clock::SimClock>(o.rate);
-  std::unique_ptr<sim::RobotSimulator> robot;
+  std::unique_ptr<sim::robot::RobotSimulator> robot;
   try {
     if (!o.rtu_device.empty()) {
-      sim::RtuEndpoint ep;
+      sim::robot::RtuEndpoint ep;
       ep.device = o.rtu_device;
       ep.baud = o.baud;
-      robot = sim::RobotSimulator::serve_rtu(cfg, *clk, ep);
+      robot = sim::robot::RobotSimulator::serve_rtu(cfg, *clk, ep);
       std::cout << "robot-sim serving modbus rtu on " << o.rtu_device << " unit " << o.unit_id << std::endl;
     } else {
-      robot = sim::RobotSimulator::serve_tcp(cfg, *clk, o.host, o.port);
+      robot = sim::robot::RobotSimulator::serve_tcp(cfg, *clk, o.host, o.port);
       // Tools and tests read the port from this line (port 0 picks a free one).
       std::cout << "robot-sim listening on " << o.host << ":" << robot->port() << std::endl;
     }
@@ -104,7 +104,7 @@ int run(const RobotSimOptions& o) {
   log::info(os.str());
   if (!o.record.empty()) {
     try {
-      sim::write_robot_record(o.record, traj, sprays);
+      sim::robot::write_robot_record(o.record, traj, sprays);
     } catch (const std::exception& e) {
       log::error(e.what());
       return 2;

@@ -9,7 +9,7 @@
 namespace dentmark::cli {
 
 void register_stereo(CLI::App& /*app*/, CLI::App& synth) {
-  auto opt = std::make_shared<stereo::SequenceOptions>();
+  auto opt = std::make_shared<sim::stereo::SequenceOptions>();
   auto out = std::make_shared<std::string>();
   CLI::App* cmd = synth.add_subcommand("stereo", "Render a stereo sequence of the door moving on the line");
   cmd->add_option("--out", *out, "Output directory (must not exist or be empty)")->required();
@@ -42,7 +42,7 @@ void register_stereo(CLI::App& /*app*/, CLI::App& synth) {
   cmd->add_option("--seed", opt->seed, "Random seed")->capture_default_str();
   cmd->callback([opt, out] {
     try {
-      stereo::write_sequence(*opt, *out);
+      sim::stereo::write_sequence(*opt, *out);
       log::info("wrote " + *out);
       exit_code() = 0;
     } catch (const std::exception& e) {

@@ -348,8 +348,173 @@ Detection detect_at_spacing(const ingest::MeshView& input, const DetectConfig& c
   return inspect_charts(input, mesh, std::move(tree_ptr), charts, facing, cfg, std::move(out));
 }
 
-// The stages after the octree, on one tree: the whole scan's, or a chart's.
-// remeasure: as detect_at_spacing's; chart_w: build_height_map's.
+// --- The stages of inspect, in order ---
+
+// Features (eq. 3-4): the octree's feature leaves, grouped. Coarse nodes dilute a small
+// feature's spread by its share of the node's area, so they are split at half the leaf
+// threshold (the paper's single threshold misses 1 cm features in 10 cm nodes on dense,
+// noisy scans). Counts them in st.
+std::vector<std::vector<std::uint32_t>> feature_groups(const LinearOctree& tree, const DetectConfig& cfg,
+                                                       DetectionStats& st) {
+  const double leaf_sigma = st.leaf_sigma_threshold;
+  const std::vector<std::uint32_t> feature = tree.feature_leaves(0.5 * leaf_sigma, leaf_sigma);
+  auto groups = group_features(tree, feature, cfg.min_occupancy);
+  st.feature_leaves = feature.size();
+  st.feature_groups = groups.size();
+  return groups;
+}
+
+// Candidates: connected pixels over the deviation test, in an eq. (3)-(4) feature group,
+// or on one of the reference's fold lines (a character line's rounding, which the fits
+// from either side leave: reference_surface.h), so that the line is one design feature;
+// none in a hole's zone. With the masks the measurement leaves out.
+struct CandidateSet {
+  cv::Mat fold_px;               // CV_8U: the fold lines' pixels
+  cv::Mat not_surface;           // CV_8U: left out of the normals' plane fits (candidates, spikes)
+  cv::Mat not_ring;              // CV_8U: ... and of the local references (also borders, holes)
+  cv::Mat labels;                // CV_32S: component number per pixel, 0 for none
+  std::vector<Candidate> comps;  // index 0 is the background
+};
+
+CandidateSet find_candidates(const HeightMap& map, const ReferenceSurface& reference,
+                             const Deviation& deviation, const std::vector<long>& group_pixels,
+                             const cv::Mat& edge_zone, const cv::Mat& hole_zone) {
+  const int rows = map.rows, cols = map.cols;
+  CandidateSet s;
+  cv::Mat octree_px(rows, cols, CV_8U, cv::Scalar(0));
+  for (const long k : group_pixels) octree_px.data[k] = 255;
+  octree_px &= ~hole_zone;
+  s.fold_px = cv::Mat(rows, cols, CV_8U, cv::Scalar(0));
+  if (const auto& folds = reference.fold_lines(); !folds.empty()) {
+#pragma omp parallel for schedule(static)
+    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+      if (folds[static_cast<std::size_t>(k)] && !hole_zone.data[k])
+        octree_px.data[k] = s.fold_px.data[k] = 255;
+  }
+  const cv::Mat any = deviation.candidates | octree_px;
+  s.not_surface = any | deviation.spikes;
+  s.not_ring = s.not_surface | edge_zone | hole_zone;
+  s.comps = candidate_components(any, deviation.candidates, map, edge_zone, s.labels);
+  return s;
+}
+
+// Why a candidate is a design feature: by its shape (design_rules.h) or as a piece next
+// to one; nullptr when it is neither.
+struct DesignTest {
+  const DetectConfig& cfg;
+  const cv::Mat& near_design;  // CV_8U: near_design_zone
+  const cv::Mat& dev;          // CV_32F: deviation along the normal (m)
+  const char* operator()(const Candidate& comp) const {
+    if (const char* why = design_reason(comp.shape, cfg)) return why;
+    return next_to_design(comp.pixels, near_design, dev) ? "next to a design feature" : nullptr;
+  }
+};
+
+// Measurement: each dent and bump candidate measured against a local reference fitted
+// around it (measure_candidate.h), and its normal from a least-squares plane over a
+// normal_patch square around it, leaving out the candidate itself; side by side (they
+// only read the scene). Entry ci is candidate ci's; design features' stay empty.
+void measure_candidates(const CandidateScene& scene, const std::vector<Candidate>& comps,
+                        const DesignTest& is_design, const cv::Mat& not_surface, const DetectConfig& cfg,
+                        std::vector<Measurement>& measured, std::vector<Eigen::Vector3d>& normals) {
+  const HeightMap& map = scene.map;
+  const int cols = map.cols;
+  const int ncomp = static_cast<int>(comps.size());
+  measured.assign(comps.size(), {});
+  normals.assign(comps.size(), Eigen::Vector3d::Zero());
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int ci = 1; ci < ncomp; ++ci) {
+    const Candidate& comp = comps[static_cast<std::size_t>(ci)];
+    if (comp.pixels.empty() || is_design(comp)) continue;
+    const Measurement& m = measured[static_cast<std::size_t>(ci)] =
+        measure_candidate(scene, comp.pixels, ci, comp.shape.length, comp.shape.mean);
+    const long pk = map.pixel_of(m.position.x(), m.position.y());
+    normals[static_cast<std::size_t>(ci)] =
+        patch_normal(map, cfg.normal_patch, pk >= 0 ? static_cast<int>(pk / cols) : m.peak / cols,
+                     pk >= 0 ? static_cast<int>(pk % cols) : m.peak % cols, not_surface);
+  }
+}
+
+// Classification: every candidate into out, a design feature (out.features) or, by
+// classify_candidate, a dent or bump (out.defects) or noise (out.features), its pixels
+// labelled in out.labels (defects: their index; features: -2 - their index). A candidate
+// of the octree's alone (its normals vary, the deviation test saw nothing) on an outlier
+// spike's pixels is that spike's: its triangles' normals, and the trace its steep sides
+// leave on the smoothed map (a 35 um "bump" beside a cluster of three outliers, 3 mm
+// apart, at 3 in 1000). sigma3: the deviation noise at the finest scale.
+void classify_candidates(const std::vector<Candidate>& comps, const std::vector<Measurement>& measured,
+                         const std::vector<Eigen::Vector3d>& normals, const DesignTest& is_design,
+                         const cv::Mat& spike, double sigma3, const DetectConfig& cfg, Detection& out) {
+  const HeightMap& map = out.map;
+  const auto touches_spike = [&](const std::vector<std::int32_t>& pixels) {
+    return std::any_of(pixels.begin(), pixels.end(), [&](std::int32_t k) { return spike.data[k] != 0; });
+  };
+  for (std::size_t ci = 1; ci < comps.size(); ++ci) {
+    const Candidate& comp = comps[ci];
+    if (comp.pixels.empty()) continue;
+    const CandidateShape& shape = comp.shape;
+    if (const char* why = is_design(comp)) {
+      for (auto k : comp.pixels)
+        out.labels[static_cast<std::size_t>(k)] = -2 - static_cast<int>(out.features.size());
+      out.features.push_back(design_finding(comp, map, out.deviation, why));
+      continue;
+    }
+    const bool outlier =
+        !comp.has_deviation &&
+        (shape.length < std::max(cfg.min_diameter, 2.5 * out.stats.spacing) || touches_spike(comp.pixels));
+    Finding f = classify_candidate(comp, measured[ci], normals[ci], map, cfg, sigma3, outlier);
+    protocol::Defect& d = f.defect;
+    const bool is_defect =
+        d.defect_class == protocol::DefectClass::kDent || d.defect_class == protocol::DefectClass::kBump;
+    const int label =
+        is_defect ? static_cast<int>(out.defects.size()) : -2 - static_cast<int>(out.features.size());
+    for (auto k : comp.pixels) out.labels[static_cast<std::size_t>(k)] = label;
+    d.id = static_cast<std::uint32_t>(is_defect ? out.defects.size() : out.features.size());
+    (is_defect ? out.defects : out.features).push_back(std::move(f));
+  }
+}
+
+// Along features: defects on and beside design features, out of the feature's profile
+// along it (along_feature.h), appended to out.defects with their pixels labelled.
+void add_along_feature_defects(const CandidateSet& cs, const DesignTest& is_design,
+                               const Deviation& deviation, const cv::Mat& edge_zone, const cv::Mat& hole_zone,
+                               const std::vector<int>& scales, double sigma3, const DetectConfig& cfg,
+                               Detection& out) {
+  const HeightMap& map = out.map;
+  cv::Mat design_px(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  for (const Candidate& comp : cs.comps)
+    if (!comp.pixels.empty() && is_design(comp))
+      for (auto k : comp.pixels) design_px.data[k] = 255;
+  design_px |= cs.fold_px;
+  const cv::Mat excluded = deviation.spikes | hole_zone;
+  std::vector<std::vector<std::int32_t>> along_px;
+  const AlongFeatureScene along_scene{
+      map,    deviation.along_normal, design_px, edge_zone, excluded, cs.not_surface, out.labels,
+      scales, deviation.scale_sigma,  sigma3};
+  std::vector<Finding> along = defects_along_features(along_scene, cfg, along_px);
+  for (std::size_t i = 0; i < along.size(); ++i) {
+    const int label = static_cast<int>(out.defects.size());
+    for (auto k : along_px[i]) out.labels[static_cast<std::size_t>(k)] = label;
+    along[i].defect.id = static_cast<std::uint32_t>(label);
+    out.defects.push_back(std::move(along[i]));
+  }
+}
+
+// Holes: each a defect (hole_finding), appended to out.defects with its pixels labelled.
+void add_hole_defects(const std::vector<HoleRegion>& holes, const std::vector<float>& ref,
+                      const cv::Mat& hole_zone, const DetectConfig& cfg, Detection& out) {
+  for (const HoleRegion& hr : holes) {
+    Finding f = hole_finding(hr, out.map, ref, hole_zone, cfg.normal_patch);
+    f.defect.id = static_cast<std::uint32_t>(out.defects.size());
+    for (auto k : hr.pixels) out.labels[static_cast<std::size_t>(k)] = static_cast<int>(out.defects.size());
+    out.defects.push_back(std::move(f));
+  }
+}
+
+// The stages after the octree, on one tree: the whole scan's, or a chart's: features,
+// height map, reference and deviation, holes, candidates, measurement, classification,
+// along features; each stage's time in out.timing. remeasure: as detect_at_spacing's;
+// chart_w: build_height_map's.
 Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
                   std::unique_ptr<const LinearOctree> tree_ptr, const DetectConfig& cfg, Detection out,
                   bool remeasure, Clock::time_point start, Clock::time_point t0,
@@ -362,17 +527,9 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   const LinearOctree& tree = *tree_ptr;
   DetectionStats& st = out.stats;
   const double h = st.leaf_size;
-  const double leaf_sigma = st.leaf_sigma_threshold;
-  // Coarse nodes dilute a small feature's spread by its share of the node's area, so
-  // they are split at half the leaf threshold (the paper's single threshold misses
-  // 1 cm features in 10 cm nodes on dense, noisy scans).
-  const std::vector<std::uint32_t> feature = tree.feature_leaves(0.5 * leaf_sigma, leaf_sigma);
-  const auto groups = group_features(tree, feature, cfg.min_occupancy);
-  st.feature_leaves = feature.size();
-  st.feature_groups = groups.size();
+  const auto groups = feature_groups(tree, cfg, st);
   lap("features");
 
-  // --- Height map and robust reference surface ---
   std::vector<std::uint8_t> background_leaf;
   out.map = build_height_map(tree, h, cfg.hole_depth, &background_leaf, chart_w);
   st.background_area = out.map.background_area;
@@ -386,7 +543,6 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   }
   lap("map");
   const HeightMap& map = out.map;
-  const int rows = map.rows, cols = map.cols;
   // The feature groups' pixels (eq. 3-4 candidates); the leaves are not needed after this.
   const std::vector<long> group_pixels = pixels_of_groups(tree, groups, map);
   // Working memory: the octree's leaves and the records of its build; the map's arrays and
@@ -394,139 +550,55 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   st.working_bytes =
       tree.bytes() + map.size() * (6 * 4 + 4 * 4 + 8) + tree.leaves().size() * 4 + map.size() * 4;
   tree_ptr.reset();
+
+  const bool on_chart = chart_w.squaredNorm() > 0.0;
   const cv::Mat edge_zone = border_zone(map);
-  const cv::Mat interior = interior_of(map, edge_zone);
   const std::vector<int> scales = detection_scales(h);
   ReferenceSurface reference(map, cfg.reference_window);
-  reference.look_for_folds(chart_w.squaredNorm() == 0.0);  // not on a chart (reference_surface.h)
+  reference.look_for_folds(!on_chart);  // not on a chart (reference_surface.h)
   Deviation deviation =
-      deviation_from_reference(map, reference, interior, scales, cfg, chart_w.squaredNorm() > 0.0);
+      deviation_from_reference(map, reference, interior_of(map, edge_zone), scales, cfg, on_chart);
   st.deviation_noise = deviation.noise;
-  const cv::Mat& dev = deviation.along_normal;
-  const cv::Mat& spike = deviation.spikes;
-  cv::Mat& cand = deviation.candidates;
   lap("reference");
   const std::vector<float>& ref = reference.heights();
 
-  // --- Holes: enclosed regions seen through; their rim is theirs, not a dent's ---
-  const std::vector<HoleRegion> holes = find_holes(map, dev, ref, cfg.hole_depth, cfg.max_hole_diameter);
-  const cv::Mat hole_zone = hole_zone_of(holes, rows, cols, h);
-  cand &= ~hole_zone;
+  const std::vector<HoleRegion> holes =
+      find_holes(map, deviation.along_normal, ref, cfg.hole_depth, cfg.max_hole_diameter);
+  const cv::Mat hole_zone = hole_zone_of(holes, map.rows, map.cols, h);
+  deviation.candidates &= ~hole_zone;
 
-  // --- Candidates: deviation test or eq. (3)-(4) feature groups ---
-  cv::Mat octree_px(rows, cols, CV_8U, cv::Scalar(0));
-  for (const long k : group_pixels) octree_px.data[k] = 255;
-  octree_px &= ~hole_zone;
-  // ... or the reference's fold lines (a character line's rounding, which the fits from
-  // either side leave: reference_surface.h), so that the line is one design feature.
-  cv::Mat fold_px(rows, cols, CV_8U, cv::Scalar(0));
-  if (const auto& folds = reference.fold_lines(); !folds.empty()) {
-#pragma omp parallel for schedule(static)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
-      if (folds[static_cast<std::size_t>(k)] && !hole_zone.data[k]) octree_px.data[k] = fold_px.data[k] = 255;
-  }
-  cv::Mat any = cand | octree_px;
-  const cv::Mat not_surface = any | spike;                       // left out of the normals' plane fits
-  const cv::Mat not_ring = not_surface | edge_zone | hole_zone;  // and of the local references
-  cv::Mat labels;
-  const std::vector<Candidate> comps = candidate_components(any, cand, map, edge_zone, labels);
-  const int ncomp = static_cast<int>(comps.size());
+  const CandidateSet cs = find_candidates(map, reference, deviation, group_pixels, edge_zone, hole_zone);
+  const cv::Mat& dev = deviation.along_normal;
   detail::side_by_side([&] { out.labels.assign(map.size(), -1); },
                        [&] { out.deviation.assign(dev.ptr<float>(), dev.ptr<float>() + map.size()); });
   const double sigma3 = std::max(deviation.scale_sigma.front(), 1e-9);
-
-  const cv::Mat near_design = near_design_zone(comps, fold_px, edge_zone, map, cfg);
-  const auto reason_for_design = [&](const Candidate& comp) -> const char* {
-    if (const char* why = design_reason(comp.shape, cfg)) return why;
-    return next_to_design(comp.pixels, near_design, dev) ? "next to a design feature" : nullptr;
-  };
+  const cv::Mat near_design = near_design_zone(cs.comps, cs.fold_px, edge_zone, map, cfg);
+  const DesignTest is_design{cfg, near_design, dev};
 
   // The scan's own samples under the dent and bump candidates, for their apex depth.
   // Design features need none.
   const bool coarse = scales.front() < 3;
   std::vector<const Candidate*> measurable;
-  for (const Candidate& comp : comps)
-    if (!comp.pixels.empty() && !reason_for_design(comp)) measurable.push_back(&comp);
+  for (const Candidate& comp : cs.comps)
+    if (!comp.pixels.empty() && !is_design(comp)) measurable.push_back(&comp);
   const PixelSamples samples = samples_around(mesh, map, measurable);
   lap("samples");
 
-  const CandidateScene scene{mesh,           map,    reference, ref,        not_ring,
-                             spike,          labels, samples,   st.spacing, st.deviation_noise,
+  const CandidateScene scene{mesh,           map,
+                             reference,      ref,
+                             cs.not_ring,    deviation.spikes,
+                             cs.labels,      samples,
+                             st.spacing,     st.deviation_noise,
                              cfg.min_height, coarse};
-  // A candidate of the octree's alone (its normals vary, the deviation test saw nothing)
-  // on an outlier spike's pixels is that spike's: its triangles' normals, and the trace
-  // its steep sides leave on the smoothed map (a 35 um "bump" beside a cluster of three
-  // outliers, 3 mm apart, at 3 in 1000).
-  const auto touches_spike = [&](const std::vector<std::int32_t>& pixels) {
-    return std::any_of(pixels.begin(), pixels.end(), [&](std::int32_t k) { return spike.data[k] != 0; });
-  };
-  // Each candidate measured against a local reference fitted around it, and its normal
-  // from a least-squares plane over a normal_patch square around it, leaving out the
-  // candidate itself; side by side (they only read the scene).
-  std::vector<Measurement> measured(comps.size());
-  std::vector<Eigen::Vector3d> normals(comps.size());
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int ci = 1; ci < ncomp; ++ci) {
-    const Candidate& comp = comps[static_cast<std::size_t>(ci)];
-    if (comp.pixels.empty() || reason_for_design(comp)) continue;
-    const Measurement& m = measured[static_cast<std::size_t>(ci)] =
-        measure_candidate(scene, comp.pixels, ci, comp.shape.length, comp.shape.mean);
-    const long pk = map.pixel_of(m.position.x(), m.position.y());
-    normals[static_cast<std::size_t>(ci)] =
-        patch_normal(map, cfg.normal_patch, pk >= 0 ? static_cast<int>(pk / cols) : m.peak / cols,
-                     pk >= 0 ? static_cast<int>(pk % cols) : m.peak % cols, not_surface);
-  }
-  for (int ci = 1; ci < ncomp; ++ci) {
-    const Candidate& comp = comps[static_cast<std::size_t>(ci)];
-    if (comp.pixels.empty()) continue;
-    const CandidateShape& shape = comp.shape;
-    if (const char* why = reason_for_design(comp)) {
-      for (auto k : comp.pixels)
-        out.labels[static_cast<std::size_t>(k)] = -2 - static_cast<int>(out.features.size());
-      out.features.push_back(design_finding(comp, map, out.deviation, why));
-      continue;
-    }
-    const bool outlier =
-        !comp.has_deviation &&
-        (shape.length < std::max(cfg.min_diameter, 2.5 * st.spacing) || touches_spike(comp.pixels));
-    Finding f = classify_candidate(comp, measured[static_cast<std::size_t>(ci)],
-                                   normals[static_cast<std::size_t>(ci)], map, cfg, sigma3, outlier);
-    protocol::Defect& d = f.defect;
-    const bool is_defect =
-        d.defect_class == protocol::DefectClass::kDent || d.defect_class == protocol::DefectClass::kBump;
-    const int label =
-        is_defect ? static_cast<int>(out.defects.size()) : -2 - static_cast<int>(out.features.size());
-    for (auto k : comp.pixels) out.labels[static_cast<std::size_t>(k)] = label;
-    d.id = static_cast<std::uint32_t>(is_defect ? out.defects.size() : out.features.size());
-    (is_defect ? out.defects : out.features).push_back(std::move(f));
-  }
-  // --- Defects on and beside design features, out of the feature's profile along it ---
+  std::vector<Measurement> measured;
+  std::vector<Eigen::Vector3d> normals;
+  measure_candidates(scene, cs.comps, is_design, cs.not_surface, cfg, measured, normals);
+  classify_candidates(cs.comps, measured, normals, is_design, deviation.spikes, sigma3, cfg, out);
   if (cfg.along_features && !coarse) {
-    cv::Mat design_px(rows, cols, CV_8U, cv::Scalar(0));
-    for (const Candidate& comp : comps)
-      if (!comp.pixels.empty() && reason_for_design(comp))
-        for (auto k : comp.pixels) design_px.data[k] = 255;
-    design_px |= fold_px;
-    const cv::Mat excluded = spike | hole_zone;
-    std::vector<std::vector<std::int32_t>> along_px;
-    const AlongFeatureScene along_scene{
-        map,   dev, design_px, edge_zone, excluded, not_surface, out.labels, scales, deviation.scale_sigma,
-        sigma3};
-    std::vector<Finding> along = defects_along_features(along_scene, cfg, along_px);
-    for (std::size_t i = 0; i < along.size(); ++i) {
-      const int label = static_cast<int>(out.defects.size());
-      for (auto k : along_px[i]) out.labels[static_cast<std::size_t>(k)] = label;
-      along[i].defect.id = static_cast<std::uint32_t>(label);
-      out.defects.push_back(std::move(along[i]));
-    }
+    add_along_feature_defects(cs, is_design, deviation, edge_zone, hole_zone, scales, sigma3, cfg, out);
     lap("along features");
   }
-  for (const HoleRegion& hr : holes) {
-    Finding f = hole_finding(hr, map, ref, hole_zone, cfg.normal_patch);
-    f.defect.id = static_cast<std::uint32_t>(out.defects.size());
-    for (auto k : hr.pixels) out.labels[static_cast<std::size_t>(k)] = static_cast<int>(out.defects.size());
-    out.defects.push_back(std::move(f));
-  }
+  add_hole_defects(holes, ref, hole_zone, cfg, out);
   order_findings(out);
   lap("classify");
   return out;

@@ -64,6 +64,138 @@ void keep_border_pieces(cv::Mat& grown, const cv::Mat& valid, const cv::Mat& int
   }
 }
 
+// --- The stages of one fit of deviation_from_reference ---
+
+// Working images of the fits, reused by every iteration.
+struct FitImages {
+  FitImages(int rows, int cols, std::size_t scales)
+      : dz(rows, cols, CV_32F),
+        wv(rows, cols, CV_32F),
+        valid(rows, cols, CV_8U),
+        num(scales),
+        off_skin(rows, cols, CV_8U, cv::Scalar(0)) {}
+  cv::Mat dz;                // CV_32F: the deviation where valid, 0 elsewhere; then its weighted median
+  cv::Mat wv;                // CV_32F: the map's weight where valid, 0 elsewhere
+  cv::Mat dm;                // CV_32F: the 3 x 3 median of dz
+  cv::Mat valid;             // CV_8U: 255 where the map and the reference both have a height
+  std::vector<cv::Mat> num;  // per scale: the windowed mean deviation, NaN where too empty
+  // Pixels found not to be skin in any fit so far: spikes, and pixels more than hole_depth
+  // off it (a hole's backdrop, a handle's top). They stay out of every later fit: left
+  // to the candidates, which change from one fit to the next, they come back into every
+  // other fit and pull it by their weight times their distance (a 10 mm spike moves a
+  // whole window's reference by ~0.1 mm).
+  cv::Mat off_skin;
+  cv::Mat off_skin_grown, grown;
+};
+
+// Deviation from the reference along the normal (out.along_normal, NaN where either has
+// no height); where it is valid, also the deviation and weight that the box filters
+// average (0 elsewhere).
+void deviation_along_normal(const HeightMap& map, const std::vector<float>& ref, Deviation& out,
+                            FitImages& im) {
+  float *d = out.along_normal.ptr<float>(), *dzp = im.dz.ptr<float>(), *wvp = im.wv.ptr<float>();
+  std::uint8_t* vp = im.valid.ptr<std::uint8_t>();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
+    const bool ok = map.weight[k] > 0.0f && std::isfinite(ref[k]);
+    d[k] = ok ? (map.w[k] - ref[k]) * map.cos_tilt[k] : std::numeric_limits<float>::quiet_NaN();
+    dzp[k] = ok ? d[k] : 0.0f;
+    wvp[k] = ok ? map.weight[k] : 0.0f;
+    vp[k] = ok ? 255 : 0;
+  }
+}
+
+// The deviation's noise (out.noise: robust sigma over the interior), and its outlier
+// spikes (out.spikes): pixels far from their 3 x 3 median. A lone spike cannot survive
+// the median; a defect of a few pixels can. Spikes and pixels more than hole_depth off
+// the reference join im.off_skin; im.dz becomes the weighted median deviation.
+void mark_spikes(const HeightMap& map, const cv::Mat& interior, const std::vector<int>& scales,
+                 const DetectConfig& cfg, Deviation& out, FitImages& im) {
+  // (The noise's σ meanwhile: both are serial.)
+  detail::side_by_side([&] { out.noise = robust_sigma(out.along_normal, interior); },
+                       [&] {
+                         if (scales.front() >= 3)
+                           cv::medianBlur(im.dz, im.dm, 3);
+                         else
+                           im.dz.copyTo(im.dm);
+                       });
+  const float* d = out.along_normal.ptr<float>();
+  const float* wvp = im.wv.ptr<float>();
+  const std::uint8_t* vp = im.valid.ptr<std::uint8_t>();
+  float* dzp = im.dz.ptr<float>();  // the weighted median deviation, in dz's place
+  const float* dmp = im.dm.ptr<float>();
+  std::uint8_t *sp = out.spikes.ptr<std::uint8_t>(), *osk = im.off_skin.ptr<std::uint8_t>();
+  const auto spike_height =
+      static_cast<float>(std::max(cfg.detection_sigma * out.noise, 0.5 * cfg.min_height));
+  const auto far_off = static_cast<float>(cfg.hole_depth);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
+    // A spike stands out of its neighbourhood by more than the neighbourhood stands out
+    // of the reference; a narrow defect's apex (its neighbours deep too) does not.
+    const float off = std::abs(dzp[k] - dmp[k]);
+    sp[k] = vp[k] && off > spike_height && off > 2.0f * std::abs(dmp[k]) ? 255 : 0;
+    osk[k] |= sp[k] | (std::abs(d[k]) > far_off ? 255 : 0);  // NaN compares false
+    dzp[k] = wvp[k] * dmp[k];
+  }
+}
+
+// Candidates (out.candidates): valid pixels whose windowed mean of the weighted median
+// deviation stands out of its scale's noise (out.scale_sigma, robust sigma over the
+// interior) at one scale or more, by detection_sigma of it and at least half min_height.
+// A window counts where it is at least 30 % full.
+void mark_candidates(const HeightMap& map, const cv::Mat& interior, const std::vector<int>& scales,
+                     const DetectConfig& cfg, Deviation& out, FitImages& im) {
+  out.candidates.create(map.rows, map.cols, CV_8U);
+  std::uint8_t* cp = out.candidates.ptr<std::uint8_t>();
+  const std::uint8_t* vp = im.valid.ptr<std::uint8_t>();
+  std::vector<double>& scale_sigma = out.scale_sigma;
+  // The windowed means, then their σ, side by side (each is serial).
+  for (std::size_t s = 0; s < scales.size(); ++s)
+    box_mean(im.dz, im.wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), im.num[s]);
+  detail::for_each_part(scales.size(),
+                        [&](std::size_t s) { scale_sigma[s] = robust_sigma(im.num[s], interior); });
+  // One pass over the scales' means.
+  std::vector<const float*> means(scales.size());
+  std::vector<float> thresholds(scales.size());
+  for (std::size_t s = 0; s < scales.size(); ++s) {
+    means[s] = im.num[s].ptr<float>();
+    thresholds[s] = static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));
+  }
+#pragma omp parallel for schedule(static)
+  for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q) {
+    bool out_of_noise = false;
+    for (std::size_t s = 0; s < means.size(); ++s)
+      out_of_noise = out_of_noise || std::abs(means[s][q]) > thresholds[s];  // NaN compares false
+    cp[q] = vp[q] && out_of_noise ? 255 : 0;
+  }
+}
+
+// The next fit's weights: candidates (grown by 2 pixels) and pixels off the skin leave
+// it. On a chart, candidates reaching a border stay: its borders are the chart's cut or
+// the panel's edge at 30-55 degrees to the map, where, with nothing beyond to interpolate
+// from, a fit without them only extrapolates into them (a tube's edge: ~20 um after the
+// first fit, -0.6 mm after the third). On a single view's map its borders are flanges,
+// openings and the edges of holes, and are left out as before (kept in, 2 of 3 defects
+// were found beside stray vertices, and one of 2 on the small door). Spends
+// out.candidates (off a chart).
+void weights_for_next_fit(const HeightMap& map, const cv::Mat& interior, bool keep_border_candidates,
+                          Deviation& out, FitImages& im, std::vector<float>& ref_weights) {
+  const cv::Mat square = cv::getStructuringElement(cv::MORPH_RECT, {5, 5});
+  if (keep_border_candidates) {
+    dilate_in_strips(out.candidates, im.grown, square);
+    keep_border_pieces(im.grown, im.valid, interior);
+    dilate_in_strips(im.off_skin, im.off_skin_grown, square);
+    im.grown |= im.off_skin_grown;
+  } else {
+    out.candidates |= im.off_skin;  // (this iteration's candidates are not needed after this)
+    dilate_in_strips(out.candidates, im.grown, square);
+  }
+  const std::uint8_t* g = im.grown.ptr<std::uint8_t>();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
+    ref_weights[k] = g[k] ? 0.0f : map.weight[k];
+}
+
 }  // namespace
 
 std::vector<int> detection_scales(double pixel) {
@@ -79,113 +211,21 @@ std::vector<int> detection_scales(double pixel) {
 Deviation deviation_from_reference(const HeightMap& map, ReferenceSurface& reference, const cv::Mat& interior,
                                    const std::vector<int>& scales, const DetectConfig& cfg,
                                    bool keep_border_candidates) {
-  const int rows = map.rows, cols = map.cols;
   Deviation out;
+  out.along_normal.create(map.rows, map.cols, CV_32F);
+  out.spikes.create(map.rows, map.cols, CV_8U);
+  out.scale_sigma.assign(scales.size(), 0.0);
+  FitImages im(map.rows, map.cols, scales.size());
   std::vector<float> ref_weights(map.weight);
-  cv::Mat& dev = out.along_normal;
-  dev.create(rows, cols, CV_32F);
-  cv::Mat& cand = out.candidates;
-  // Working images, reused by every iteration.
-  cv::Mat dz(rows, cols, CV_32F), wv(rows, cols, CV_32F), dm, valid(rows, cols, CV_8U);
-  std::vector<cv::Mat> num(scales.size());
-  // Pixels far from their 3 x 3 median: outlier spikes.
-  cv::Mat& spike = out.spikes;
-  spike.create(rows, cols, CV_8U);
-  // Pixels found not to be skin in any fit so far: spikes, and pixels more than hole_depth
-  // off it (a hole's backdrop, a handle's top). They stay out of every later fit: left
-  // to the candidates, which change from one fit to the next, they come back into every
-  // other fit and pull it by their weight times their distance (a 10 mm spike moves a
-  // whole window's reference by ~0.1 mm).
-  cv::Mat off_skin(rows, cols, CV_8U, cv::Scalar(0)), off_skin_grown, grown;
-  std::vector<double>& scale_sigma = out.scale_sigma;
-  scale_sigma.assign(scales.size(), 0.0);
   const int iterations = std::max(1, cfg.reference_iterations);
   for (int it = 0; it < iterations; ++it) {
     // After the first: only where the candidates changed.
     const std::vector<float>& ref = reference.fit(ref_weights);
-    // Deviation from the reference along the normal; where it is valid, also the
-    // deviation and weight that the box filters average (0 elsewhere).
-    float *d = dev.ptr<float>(), *dzp = dz.ptr<float>(), *wvp = wv.ptr<float>();
-    std::uint8_t* vp = valid.ptr<std::uint8_t>();
-#pragma omp parallel for schedule(static)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
-      const bool ok = map.weight[k] > 0.0f && std::isfinite(ref[k]);
-      d[k] = ok ? (map.w[k] - ref[k]) * map.cos_tilt[k] : std::numeric_limits<float>::quiet_NaN();
-      dzp[k] = ok ? d[k] : 0.0f;
-      wvp[k] = ok ? map.weight[k] : 0.0f;
-      vp[k] = ok ? 255 : 0;
-    }
-    // Median first: a lone outlier spike cannot survive it; a defect of a few pixels can.
-    // (The noise's σ meanwhile: both are serial.)
-    detail::side_by_side([&] { out.noise = robust_sigma(dev, interior); },
-                         [&] {
-                           if (scales.front() >= 3)
-                             cv::medianBlur(dz, dm, 3);
-                           else
-                             dz.copyTo(dm);
-                         });
-    float* wdm = dz.ptr<float>();  // the weighted median deviation, in dz's place
-    const float* dmp = dm.ptr<float>();
-    std::uint8_t *sp = spike.ptr<std::uint8_t>(), *osk = off_skin.ptr<std::uint8_t>();
-    const auto spike_height =
-        static_cast<float>(std::max(cfg.detection_sigma * out.noise, 0.5 * cfg.min_height));
-    const auto far_off = static_cast<float>(cfg.hole_depth);
-#pragma omp parallel for schedule(static)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
-      // A spike stands out of its neighbourhood by more than the neighbourhood stands out
-      // of the reference; a narrow defect's apex (its neighbours deep too) does not.
-      const float off = std::abs(dzp[k] - dmp[k]);
-      sp[k] = vp[k] && off > spike_height && off > 2.0f * std::abs(dmp[k]) ? 255 : 0;
-      osk[k] |= sp[k] | (std::abs(d[k]) > far_off ? 255 : 0);  // NaN compares false
-      wdm[k] = wvp[k] * dmp[k];
-    }
-    cand.create(rows, cols, CV_8U);
-    std::uint8_t* cp = cand.ptr<std::uint8_t>();
-    // The windowed means where the window is at least 30 % full, NaN elsewhere; then their
-    // σ, side by side (each is serial).
-    for (std::size_t s = 0; s < scales.size(); ++s)
-      box_mean(dz, wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), num[s]);
-    detail::for_each_part(scales.size(),
-                          [&](std::size_t s) { scale_sigma[s] = robust_sigma(num[s], interior); });
-    // A candidate stands out at one scale or more (one pass over the scales' means).
-    std::vector<const float*> means(scales.size());
-    std::vector<float> thresholds(scales.size());
-    for (std::size_t s = 0; s < scales.size(); ++s) {
-      means[s] = num[s].ptr<float>();
-      thresholds[s] =
-          static_cast<float>(std::max(cfg.detection_sigma * scale_sigma[s], 0.5 * cfg.min_height));
-    }
-#pragma omp parallel for schedule(static)
-    for (std::int64_t q = 0; q < static_cast<std::int64_t>(map.size()); ++q) {
-      bool out_of_noise = false;
-      for (std::size_t s = 0; s < means.size(); ++s)
-        out_of_noise = out_of_noise || std::abs(means[s][q]) > thresholds[s];  // NaN compares false
-      cp[q] = vp[q] && out_of_noise ? 255 : 0;
-    }
-    if (it + 1 < iterations) {
-      // Candidates (grown by 2 pixels) and pixels off the skin leave the next fit. On a
-      // chart, candidates reaching a border stay: its borders are the chart's cut or the
-      // panel's edge at 30-55 degrees to the map, where, with nothing beyond to
-      // interpolate from, a fit without them only extrapolates into them (a tube's edge:
-      // ~20 um after the first fit, -0.6 mm after the third). On a single view's map its
-      // borders are flanges, openings and the edges of holes, and are left out as before
-      // (kept in, 2 of 3 defects were found beside stray vertices, and one of 2 on the
-      // small door).
-      const cv::Mat square = cv::getStructuringElement(cv::MORPH_RECT, {5, 5});
-      if (keep_border_candidates) {
-        dilate_in_strips(cand, grown, square);
-        keep_border_pieces(grown, valid, interior);
-        dilate_in_strips(off_skin, off_skin_grown, square);
-        grown |= off_skin_grown;
-      } else {
-        cand |= off_skin;  // (this iteration's candidates are not needed after this)
-        dilate_in_strips(cand, grown, square);
-      }
-      const std::uint8_t* g = grown.ptr<std::uint8_t>();
-#pragma omp parallel for schedule(static)
-      for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k)
-        ref_weights[k] = g[k] ? 0.0f : map.weight[k];
-    }
+    deviation_along_normal(map, ref, out, im);
+    mark_spikes(map, interior, scales, cfg, out, im);
+    mark_candidates(map, interior, scales, cfg, out, im);
+    if (it + 1 < iterations)
+      weights_for_next_fit(map, interior, keep_border_candidates, out, im, ref_weights);
   }
   return out;
 }

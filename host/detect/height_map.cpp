@@ -92,125 +92,113 @@ void fill_aliasing_gaps(HeightMap& map, float layer) {
     }
 }
 
-}  // namespace
+// --- The stages of build_height_map ---
 
-HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
-                           std::vector<std::uint8_t>* background_leaf, const Eigen::Vector3d& chart_w) {
-  const auto& leaves = tree.leaves();
-  const bool chart = chart_w.squaredNorm() > 0.0;
-  HeightMap map;
-  map.pixel = pixel;
-  // Plane through the area-weighted leaf centroids (weighted scatter of leaf means). One
-  // pass of sums about a point near the data, in fixed chunks summed in order: the same
-  // plane to the last bit whatever the number of threads.
+// The panel's box: per axis the middle 98 % of the leaves (sampled), widened by a
+// quarter of its largest side each way, holds every leaf of a real scan. A stray leaf
+// beyond it (an outlier tens or hundreds of metres off, meshed to the panel) stays out of
+// the plane, whose scatter it would dominate by its distance, and off the map, which it
+// would stretch to gigapixels.
+Box panel_box(const OctreeLeaves& leaves) {
+  const std::size_t stride = std::max<std::size_t>(1, leaves.size() / 100000);
+  std::vector<float> x[3];
+  for (std::size_t i = 0; i < leaves.size(); i += stride)
+    if (leaves[i].area > 0.0f)
+      for (int a = 0; a < 3; ++a) x[a].push_back(leaves[i].centroid[a]);
+  return middle_box(x);
+}
+
+// The map's plane through the leaves `use` selects: its frame in map.origin and map.axes,
+// w towards the sensor (or, on a chart, to chart_w's side; without a sensor, the side the
+// panel bulges to). The plane runs through the area-weighted leaf centroids (weighted
+// scatter of leaf means): one pass of sums about a point near the data, in fixed chunks
+// summed in order, so the same plane to the last bit whatever the number of threads.
+// A leaf counts at most max_leaf_area.
+template <class Use>
+void fit_map_plane(const OctreeLeaves& leaves, Use use, double max_leaf_area, const Eigen::Vector3d& chart_w,
+                   HeightMap& map) {
   struct Sums {
     double area = 0.0;
     Eigen::Vector3d p = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
     Eigen::Matrix3d pp = Eigen::Matrix3d::Zero();
   };
-  // The panel's box: per axis the middle 98 % of the leaves (sampled), widened by a
-  // quarter of its largest side each way, holds every leaf of a real scan. A stray leaf beyond
-  // it (an outlier tens or hundreds of metres off, meshed to the panel) stays out of the
-  // plane, whose scatter it would dominate by its distance, and off the map, which it
-  // would stretch to gigapixels.
-  Box box;
-  {
-    const std::size_t stride = std::max<std::size_t>(1, leaves.size() / 100000);
-    std::vector<float> x[3];
-    for (std::size_t i = 0; i < leaves.size(); i += stride)
-      if (leaves[i].area > 0.0f)
-        for (int a = 0; a < 3; ++a) x[a].push_back(leaves[i].centroid[a]);
-    box = middle_box(x);
-  }
-  const auto in_box = [&](const OctreeLeaf& l) {
-    return l.area > 0.0f && (l.centroid.array() >= box.lo.array()).all() &&
-           (l.centroid.array() <= box.hi.array()).all();
-  };
   constexpr std::int64_t kChunks = 64;
-  const double max_leaf_area = 3.0 * tree.leaf_size() * tree.leaf_size();
+  const bool chart = chart_w.squaredNorm() > 0.0;
   Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
   if (!leaves.empty()) x0 = leaves[leaves.size() / 2].centroid.cast<double>();
   const auto leaf_count = static_cast<std::int64_t>(leaves.size());
-  // The plane through the leaves `use` selects: its frame in map.origin and map.axes.
-  const auto fit_plane = [&](auto use) {
-    std::vector<Sums> chunk(kChunks);
+  std::vector<Sums> chunk(kChunks);
 #pragma omp parallel for schedule(static)
-    for (std::int64_t ch = 0; ch < kChunks; ++ch) {
-      Sums& cs = chunk[static_cast<std::size_t>(ch)];
-      for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
-        const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
-        cs.s += l.sum_an.cast<double>();
-        if (!use(static_cast<std::size_t>(i))) continue;
-        // A leaf holds at most ~1.5 h² of surface (a plane cuts a cube in at most √2 h²);
-        // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
-        // metres long), whose whole area lands in one leaf and would tilt the plane.
-        const double a = std::min(static_cast<double>(l.area), max_leaf_area);
-        const Eigen::Vector3d d = l.centroid.cast<double>() - x0, ad = a * d;
-        cs.area += a, cs.p += ad;
-        // (The upper triangle: the lower one is the same.)
-        for (int r = 0; r < 3; ++r)
-          for (int c = r; c < 3; ++c) cs.pp(r, c) += ad(r) * d(c);
-      }
+  for (std::int64_t ch = 0; ch < kChunks; ++ch) {
+    Sums& cs = chunk[static_cast<std::size_t>(ch)];
+    for (std::int64_t i = leaf_count * ch / kChunks; i < leaf_count * (ch + 1) / kChunks; ++i) {
+      const OctreeLeaf& l = leaves[static_cast<std::size_t>(i)];
+      cs.s += l.sum_an.cast<double>();
+      if (!use(static_cast<std::size_t>(i))) continue;
+      // A leaf holds at most ~1.5 h² of surface (a plane cuts a cube in at most √2 h²);
+      // more is a spike's triangles (an outlier vertex meshed to the panel, hundreds of
+      // metres long), whose whole area lands in one leaf and would tilt the plane.
+      const double a = std::min(static_cast<double>(l.area), max_leaf_area);
+      const Eigen::Vector3d d = l.centroid.cast<double>() - x0, ad = a * d;
+      cs.area += a, cs.p += ad;
+      // (The upper triangle: the lower one is the same.)
+      for (int r = 0; r < 3; ++r)
+        for (int c = r; c < 3; ++c) cs.pp(r, c) += ad(r) * d(c);
     }
-    Sums all;
-    for (const Sums& cs : chunk) all.area += cs.area, all.p += cs.p, all.s += cs.s, all.pp += cs.pp;
-    const double A = all.area;
-    const Eigen::Vector3d S = all.s;
-    if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
-    const Eigen::Vector3d mean = all.p / A;  // relative to x0
-    const Eigen::Vector3d c = x0 + mean;
-    for (int i = 1; i < 3; ++i)
-      for (int j = 0; j < i; ++j) all.pp(i, j) = all.pp(j, i);  // the lower triangle
-    const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
-    Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
-    // The scatter's thinnest direction is the panel's normal when the scan is one
-    // surface. With a wall far behind the panel in the scan as well, the gap between the
-    // two can be the scatter's widest extent, and the plane turns edge-on to the panel.
-    // The triangles' mean normal still faces the sensor: where the two disagree by more
-    // than 45 degrees it is the map's normal.
-    if (S.norm() > 0.1 * A && std::abs(w.dot(S.normalized())) < std::sqrt(0.5)) w = S.normalized();
-    // Towards the sensor at the frame origin. An origin within 10 cm of the plane is no
-    // sensor's (a profiler's or a part's frame): then towards the side the triangles face.
-    const double side = w.dot(-c);
-    if (std::abs(side) > 0.1 ? side < 0 : w.dot(S) < 0) w = -w;
-    // An origin on the side the triangles face away from is a sensor's whose mesh is
-    // wound the other way, or no sensor's at all (a vehicle's or a part's frame, its
-    // origin inside the body): there the side the panel bulges to is its outside. (From
-    // the inside every dent reads as a bump.)
-    if (!chart && std::abs(side) > 0.1 && S.norm() > 0.1 * A && w.dot(S) < 0.0 &&
-        bulge_towards(leaves, use, c, w, max_leaf_area) < -kClearBulge)
-      w = -w;
-    // A chart's map looks the way the whole scan's does: to chart_w's side. (Square along
-    // the chart's axis instead of the fit's plane: 5 false alarms more over the other
-    // generator's fenders, one dent's depth 0.27 mm better; the plane leaned 15-20 degrees
-    // from the axis in both.)
-    if (chart && w.dot(chart_w) < 0.0) w = -w;
-    // u along the scatter's widest direction across w.
-    // (Far off the panel's normal the wall's gap can be that direction: then the next.)
-    Eigen::Vector3d u = eig.eigenvectors().col(2).normalized();
-    u = u - u.dot(w) * w;
-    if (u.norm() < 0.5) u = eig.eigenvectors().col(1) - eig.eigenvectors().col(1).dot(w) * w;
-    u.normalize();
-    const Eigen::Vector3d v = w.cross(u);
-    map.origin = c;
-    map.axes.row(0) = u.transpose();
-    map.axes.row(1) = v.transpose();
-    map.axes.row(2) = w.transpose();
-  };
-  fit_plane([&](std::size_t i) { return in_box(leaves[i]); });
-  // A wall or the floor far behind the panel: its leaves leave the plane and the map.
-  const Background background = find_background(tree, map, box);
-  map.background_area = background.area;
-  const auto on_map = [&](std::size_t i) {
-    return in_box(leaves[i]) && (background.leaf.empty() || !background.leaf[i]);
-  };
-  if (!background.leaf.empty()) fit_plane(on_map);
-  map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
-  map.has_viewpoint = map.viewpoint.z() > 0.1;
+  }
+  Sums all;
+  for (const Sums& cs : chunk) all.area += cs.area, all.p += cs.p, all.s += cs.s, all.pp += cs.pp;
+  const double A = all.area;
+  const Eigen::Vector3d S = all.s;
+  if (!(A > 0.0)) throw std::invalid_argument("scan has no surface area");
+  const Eigen::Vector3d mean = all.p / A;  // relative to x0
+  const Eigen::Vector3d c = x0 + mean;
+  for (int i = 1; i < 3; ++i)
+    for (int j = 0; j < i; ++j) all.pp(i, j) = all.pp(j, i);  // the lower triangle
+  const Eigen::Matrix3d scatter = all.pp - A * mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+  Eigen::Vector3d w = eig.eigenvectors().col(0).normalized();
+  // The scatter's thinnest direction is the panel's normal when the scan is one
+  // surface. With a wall far behind the panel in the scan as well, the gap between the
+  // two can be the scatter's widest extent, and the plane turns edge-on to the panel.
+  // The triangles' mean normal still faces the sensor: where the two disagree by more
+  // than 45 degrees it is the map's normal.
+  if (S.norm() > 0.1 * A && std::abs(w.dot(S.normalized())) < std::sqrt(0.5)) w = S.normalized();
+  // Towards the sensor at the frame origin. An origin within 10 cm of the plane is no
+  // sensor's (a profiler's or a part's frame): then towards the side the triangles face.
+  const double side = w.dot(-c);
+  if (std::abs(side) > 0.1 ? side < 0 : w.dot(S) < 0) w = -w;
+  // An origin on the side the triangles face away from is a sensor's whose mesh is
+  // wound the other way, or no sensor's at all (a vehicle's or a part's frame, its
+  // origin inside the body): there the side the panel bulges to is its outside. (From
+  // the inside every dent reads as a bump.)
+  if (!chart && std::abs(side) > 0.1 && S.norm() > 0.1 * A && w.dot(S) < 0.0 &&
+      bulge_towards(leaves, use, c, w, max_leaf_area) < -kClearBulge)
+    w = -w;
+  // A chart's map looks the way the whole scan's does: to chart_w's side. (Square along
+  // the chart's axis instead of the fit's plane: 5 false alarms more over the other
+  // generator's fenders, one dent's depth 0.27 mm better; the plane leaned 15-20 degrees
+  // from the axis in both.)
+  if (chart && w.dot(chart_w) < 0.0) w = -w;
+  // u along the scatter's widest direction across w.
+  // (Far off the panel's normal the wall's gap can be that direction: then the next.)
+  Eigen::Vector3d u = eig.eigenvectors().col(2).normalized();
+  u = u - u.dot(w) * w;
+  if (u.norm() < 0.5) u = eig.eigenvectors().col(1) - eig.eigenvectors().col(1).dot(w) * w;
+  u.normalize();
+  const Eigen::Vector3d v = w.cross(u);
+  map.origin = c;
+  map.axes.row(0) = u.transpose();
+  map.axes.row(1) = v.transpose();
+  map.axes.row(2) = w.transpose();
+}
 
-  // Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), NaN off the map, and the
-  // map's extent over them, in one pass.
+// Leaf centroids in map coordinates (floats: 0.1 µm over 2 m), NaN for the leaves
+// `on_map` leaves out, and the map's extent over them (one pixel of margin), in one
+// pass. Throws when the map would pass 4e8 pixels.
+template <class OnMap>
+std::vector<Eigen::Vector3f> leaves_in_map(const OctreeLeaves& leaves, OnMap on_map, double pixel,
+                                           HeightMap& map) {
   const auto count = static_cast<std::int64_t>(leaves.size());
   std::vector<Eigen::Vector3f> q(leaves.size());
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
@@ -228,10 +216,25 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   map.cols = static_cast<int>((umax - map.u0) / pixel) + 2;
   map.rows = static_cast<int>((vmax - map.v0) / pixel) + 2;
   if (static_cast<double>(map.cols) * map.rows > 4e8) throw std::invalid_argument("height map too large");
+  return q;
+}
+
+// Each leaf's pixel (-1: none), and the map cut into bands of pixel rows with as many
+// leaves each, one a thread (the map's empty window and borders would leave a thread
+// idle otherwise): band b is pixels [band_first[b], band_first[b + 1]).
+struct LeafPixels {
+  std::unique_ptr<std::int32_t[]> pix;
+  std::vector<std::int32_t> band_first;
+  std::size_t bands = 0;
+};
+
+LeafPixels leaf_pixels(const HeightMap& map, const std::vector<Eigen::Vector3f>& q) {
+  const auto count = static_cast<std::int64_t>(q.size());
   const std::size_t n = map.size();
-  // Each leaf's pixel (-1: none), and how many leaves fall in each pixel row. (Every
-  // entry is written here, by both threads: no serial fill first.)
-  const std::unique_ptr<std::int32_t[]> pix(new std::int32_t[leaves.size()]);
+  LeafPixels lp;
+  // (Every entry is written here, by both threads: no serial fill first.)
+  lp.pix.reset(new std::int32_t[q.size()]);
+  std::int32_t* const pix = lp.pix.get();
   std::vector<std::int64_t> row_leaves(static_cast<std::size_t>(map.rows), 0);
   std::int64_t* per_row = row_leaves.data();
 #pragma omp parallel for schedule(static) reduction(+ : per_row[:map.rows])
@@ -241,21 +244,30 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     pix[i] = on ? r * map.cols + c : -1;
     per_row[r] += on;
   }
-  // Bands of pixel rows with as many leaves each (the map's empty window and borders
-  // would leave a thread idle otherwise). A band's pixels are summed by one thread, in
-  // leaf order: the same sums whatever the number of bands.
-  const auto bands = static_cast<std::size_t>(detail::thread_count());
-  std::vector<std::int32_t> band_first(bands + 1, static_cast<std::int32_t>(n));
-  {
-    std::int64_t total = 0, seen = 0;
-    for (const std::int64_t in_row : row_leaves) total += in_row;
-    std::size_t b = 0;
-    for (int r = 0; r < map.rows && b < bands; ++r) {
-      while (b < bands && seen >= total * static_cast<std::int64_t>(b) / static_cast<std::int64_t>(bands))
-        band_first[b++] = r * map.cols;
-      seen += row_leaves[static_cast<std::size_t>(r)];
-    }
+  lp.bands = static_cast<std::size_t>(detail::thread_count());
+  lp.band_first.assign(lp.bands + 1, static_cast<std::int32_t>(n));
+  std::int64_t total = 0, seen = 0;
+  for (const std::int64_t in_row : row_leaves) total += in_row;
+  std::size_t b = 0;
+  for (int r = 0; r < map.rows && b < lp.bands; ++r) {
+    while (b < lp.bands && seen >= total * static_cast<std::int64_t>(b) / static_cast<std::int64_t>(lp.bands))
+      lp.band_first[b++] = r * map.cols;
+    seen += row_leaves[static_cast<std::size_t>(r)];
   }
+  return lp;
+}
+
+// The map's pixels from the leaves on it: per pixel its tilt (cos_tilt), its
+// area-weighted position (u, v, w) and weight (the leaves' area projected on the map
+// plane per pixel area). A single view sees the front surface of each column; leaves
+// more than layer_depth behind the column's front were seen through a hole (or are
+// outliers) and go to map.behind when their surface faced the sensor. A band's pixels are
+// summed by one thread, in leaf order: the same sums whatever the number of bands.
+void fill_pixels(const OctreeLeaves& leaves, const std::vector<Eigen::Vector3f>& q, const LeafPixels& lp,
+                 double pixel, double layer_depth, HeightMap& map) {
+  const std::size_t n = map.size();
+  const std::int32_t* const pix = lp.pix.get();
+  const std::size_t bands = lp.bands;
   // The map's arrays, filled side by side (fresh memory: a page fault per 4 KB).
   std::vector<float> front;
   detail::side_by_side([&] { front.assign(n, -std::numeric_limits<float>::infinity()); },
@@ -266,7 +278,7 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
   const auto for_leaves_by_band = [&](auto&& visit) {
 #pragma omp parallel for schedule(static, 1)
     for (std::size_t b = 0; b < bands; ++b) {
-      const std::int32_t first = band_first[b], last = band_first[b + 1];
+      const std::int32_t first = lp.band_first[b], last = lp.band_first[b + 1];
       for (std::size_t i = 0; i < leaves.size(); ++i) {
         // The pixels a band's leaves meet are scattered (Morton order is not the map's):
         // their arrays are fetched 24 leaves ahead (the passes 25-35 % faster).
@@ -284,10 +296,9 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
       }
     }
   };
-  // A single view sees the front surface of each column. Leaves more than layer_depth
-  // behind the column's front were seen through a hole (or are outliers): kept aside.
-  // (Anchoring on the column's busiest leaf instead lets a hole's backdrop win the rim
-  // columns; an outlier in front only spoils its own pixel, which the median removes.)
+  // (Anchoring on the column's busiest leaf instead of its front lets a hole's backdrop
+  // win the rim columns; an outlier in front only spoils its own pixel, which the median
+  // removes.)
   for_leaves_by_band(
       [&](std::size_t, std::size_t i, std::int32_t k) { front[k] = std::max(front[k], q[i].z()); });
   const auto layer = static_cast<float>(layer_depth);
@@ -330,7 +341,6 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     map.weight[k] += a, map.u[k] += a * q[i].x(), map.v[k] += a * q[i].y(), map.w[k] += a * q[i].z();
   });
   for (const auto& b : behind) map.behind.insert(map.behind.end(), b.begin(), b.end());
-  if (background_leaf) *background_leaf = background.leaf;
   const auto inv_px2 = static_cast<float>(1.0 / (pixel * pixel));
 #pragma omp parallel for schedule(static)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
@@ -339,7 +349,37 @@ HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_
     map.u[k] /= a, map.v[k] /= a, map.w[k] /= a;
     map.weight[k] = a * inv_px2;
   }
-  if (chart) fill_aliasing_gaps(map, layer);
+}
+
+}  // namespace
+
+HeightMap build_height_map(const LinearOctree& tree, double pixel, double layer_depth,
+                           std::vector<std::uint8_t>* background_leaf, const Eigen::Vector3d& chart_w) {
+  const auto& leaves = tree.leaves();
+  HeightMap map;
+  map.pixel = pixel;
+  const Box box = panel_box(leaves);
+  const auto in_box = [&](const OctreeLeaf& l) {
+    return l.area > 0.0f && (l.centroid.array() >= box.lo.array()).all() &&
+           (l.centroid.array() <= box.hi.array()).all();
+  };
+  const double max_leaf_area = 3.0 * tree.leaf_size() * tree.leaf_size();
+  const auto in_panel_box = [&](std::size_t i) { return in_box(leaves[i]); };
+  fit_map_plane(leaves, in_panel_box, max_leaf_area, chart_w, map);
+  // A wall or the floor far behind the panel: its leaves leave the plane and the map.
+  const Background background = find_background(tree, map, box);
+  map.background_area = background.area;
+  const auto on_map = [&](std::size_t i) {
+    return in_panel_box(i) && (background.leaf.empty() || !background.leaf[i]);
+  };
+  if (!background.leaf.empty()) fit_map_plane(leaves, on_map, max_leaf_area, chart_w, map);
+  map.viewpoint = map.to_map(Eigen::Vector3d::Zero());
+  map.has_viewpoint = map.viewpoint.z() > 0.1;
+
+  const std::vector<Eigen::Vector3f> q = leaves_in_map(leaves, on_map, pixel, map);
+  fill_pixels(leaves, q, leaf_pixels(map, q), pixel, layer_depth, map);
+  if (background_leaf) *background_leaf = background.leaf;
+  if (chart_w.squaredNorm() > 0.0) fill_aliasing_gaps(map, static_cast<float>(layer_depth));
   return map;
 }
 

@@ -160,15 +160,15 @@ std::vector<std::size_t> defect_panels(const detect::Detection& det) {
   return where;
 }
 
-ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info) {
-  ReportLayout L;
-  // Colour range: the larger of 0.1 mm and 8x the measured deviation noise.
-  L.range = std::max(1e-4, 8.0 * det.stats.deviation_noise);
-  L.title = title_lines(det, info, L.range);
-  int top = L.title.back().box.bottom() + kMargin;
+namespace {
 
-  // One scale (canvas px per metre) for every panel, so that one scale bar serves all.
-  const std::vector<PanelMap> maps = panel_maps(det);
+// --- The stages of layout_report, top to bottom and left to right ---
+
+// The maps, one under the other (a title over each when the surface wraps round into
+// several charts), at one scale (canvas px per metre) for all, so that one scale bar
+// under them serves all. Fills L.panels and the scale bar; returns the bottom of the
+// left column.
+int layout_maps(ReportLayout& L, const std::vector<PanelMap>& maps, int top) {
   double px_per_m = 1e9, total_h = 0.0;
   for (const PanelMap& m : maps) {
     px_per_m = std::min(px_per_m, kMapWidth / (m.map.cols * m.map.pixel));
@@ -191,16 +191,24 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     y = panel.map.bottom() + 12;
     L.panels.push_back(std::move(panel));
   }
-  // Scale bar under the maps.
   L.scale_bar_mm = scale_bar_length(px_per_m * 1e-3, 0.4 * maps_w);
   L.scale_bar = {kMargin, y + 6, static_cast<int>(std::lround(L.scale_bar_mm * px_per_m * 1e-3)), 8};
   L.scale_bar_text = text_at(format("%.0f mm", L.scale_bar_mm), L.scale_bar.right() + 10, y, kMedium);
-  const int left_bottom = std::max(L.scale_bar.bottom(), L.scale_bar_text.box.bottom());
+  return std::max(L.scale_bar.bottom(), L.scale_bar_text.box.bottom());
+}
 
-  // Side column: colour bar, legend, table.
+// The side column's left edge: clear of the maps, their titles and the scale bar.
+int side_column_x(const ReportLayout& L) {
+  int maps_w = 0;
+  for (const auto& panel : L.panels) maps_w = std::max(maps_w, panel.map.w);
   int left_right = std::max(kMargin + maps_w, L.scale_bar_text.box.right());
   for (const auto& panel : L.panels) left_right = std::max(left_right, panel.title_text.box.right());
-  const int sx = left_right + 2 * kMargin;
+  return left_right + 2 * kMargin;
+}
+
+// The colour bar at (sx, top) with its title and five ticks over ±L.range; returns the
+// y under it.
+int layout_colour_bar(ReportLayout& L, int sx, int top) {
   L.colour_title = text_at("deviation from the reference surface", sx, top, kMedium);
   L.colour_bar = {sx, L.colour_title.box.bottom() + 12, 24, 200};
   for (int t = 2; t >= -2; --t) {
@@ -213,7 +221,12 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     item.box.y += dy, item.baseline += dy;
     L.colour_ticks.push_back(item);
   }
-  int sy = std::max(L.colour_bar.bottom(), L.colour_ticks.back().box.bottom()) + kMargin;
+  return std::max(L.colour_bar.bottom(), L.colour_ticks.back().box.bottom()) + kMargin;
+}
+
+// The legend from (sx, sy), one swatch and its text a line (the echo only with several
+// charts); returns the y under it.
+int layout_legend(ReportLayout& L, int sx, int sy, bool charts) {
   const auto legend = [&](LegendEntry::Symbol symbol, const std::string& text) {
     LegendEntry e{symbol, {sx, sy, 44, 28}, text_at(text, sx + 56, sy, kSmall)};
     const int dy = e.swatch.y + e.swatch.h / 2 - (e.text.box.y + e.text.box.h / 2);
@@ -222,13 +235,15 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     L.legend.push_back(std::move(e));
   };
   legend(LegendEntry::Symbol::kDefectRing, "defect: ring of its diameter, number as in the table");
-  if (maps.size() > 1)
-    legend(LegendEntry::Symbol::kDefectEcho, "the same defect seen on another chart (grey)");
+  if (charts) legend(LegendEntry::Symbol::kDefectEcho, "the same defect seen on another chart (grey)");
   legend(LegendEntry::Symbol::kFeatureOutline, "design feature (line, handle, edge): its outline");
   legend(LegendEntry::Symbol::kNoSurface, "no surface measured");
-  sy += kMargin / 2;
+  return sy + kMargin / 2;
+}
 
-  // Table.
+// The defect table from (sx, sy): the first kTableRows defects, numbers right-aligned in
+// their columns, words left-aligned, and a line for the rest; returns the y under it.
+int layout_table(ReportLayout& L, const detect::Detection& det, int sx, int sy) {
   L.table_title = text_at("defects (position in the scan's frame)", sx, sy, kMedium);
   sy = L.table_title.box.bottom() + 10;
   const std::vector<std::string> head{"#", "class", "diam. mm", "depth mm", "x mm", "y mm", "z mm"};
@@ -248,7 +263,6 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     std::vector<TextItem> items;
     int x = sx, h = 0;
     for (std::size_t c = 0; c < row.size(); ++c) {
-      // Numbers right-aligned in their column, words left-aligned.
       TextItem t = text_at(row[c], x, sy, kSmall);
       if (c >= 2) t.box.x += col_w[c] - t.box.w;
       items.push_back(t);
@@ -264,16 +278,24 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
                 sy, kSmall);
     sy = L.table_more.box.bottom() + 8;
   }
+  return sy;
+}
+
+// The canvas: wide enough for every text of the side column and the title, tall enough
+// for both columns.
+void size_canvas(ReportLayout& L, int sx, int left_bottom, int side_bottom) {
   int right = sx + kSideMinWidth;
   for (const auto& row : L.table) right = std::max(right, row.back().box.right());
   for (const auto& e : L.legend) right = std::max(right, e.text.box.right());
   for (const auto& t : L.colour_ticks) right = std::max(right, t.box.right());
   for (const auto& t : L.title) right = std::max(right, t.box.right());
   L.width = right + kMargin;
-  L.height = std::max(left_bottom, sy) + kMargin;
+  L.height = std::max(left_bottom, side_bottom) + kMargin;
+}
 
-  // Defect marks: on the chart that owns each defect, and on any other chart that shows
-  // the same surface there (charts overlap), an echo.
+// Defect marks: on the chart that owns each defect, and on any other chart that shows
+// the same surface there (charts overlap), an echo; labels placed clear of each other.
+void layout_marks(ReportLayout& L, const detect::Detection& det, const std::vector<PanelMap>& maps) {
   const std::vector<std::size_t> where = defect_panels(det);
   std::vector<Box> taken;
   for (std::size_t k = 0; k < det.defects.size(); ++k)
@@ -282,6 +304,24 @@ ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info)
     for (std::size_t k = 0; k < det.defects.size(); ++k)
       if (p != where[k])
         if (auto m = place_mark(det, k, maps, L, p, true, taken)) L.marks.push_back(std::move(*m));
+}
+
+}  // namespace
+
+ReportLayout layout_report(const detect::Detection& det, const ReportInfo& info) {
+  ReportLayout L;
+  // Colour range: the larger of 0.1 mm and 8x the measured deviation noise.
+  L.range = std::max(1e-4, 8.0 * det.stats.deviation_noise);
+  L.title = title_lines(det, info, L.range);
+  const int top = L.title.back().box.bottom() + kMargin;
+  const std::vector<PanelMap> maps = panel_maps(det);
+  const int left_bottom = layout_maps(L, maps, top);
+  const int sx = side_column_x(L);
+  int sy = layout_colour_bar(L, sx, top);
+  sy = layout_legend(L, sx, sy, maps.size() > 1);
+  sy = layout_table(L, det, sx, sy);
+  size_canvas(L, sx, left_bottom, sy);
+  layout_marks(L, det, maps);
   return L;
 }
 

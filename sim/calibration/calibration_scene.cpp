@@ -5,7 +5,7 @@
 #include <opencv2/core/eigen.hpp>
 #include <stdexcept>
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 namespace {
 
 cv::Mat required(const cv::FileStorage& fs, const std::string& file, const char* name, int rows, int cols) {
@@ -70,7 +70,7 @@ CalibrationScene read_calibration_scene(const std::filesystem::path& path) {
 }
 
 void write_calibration_scene(const CalibrationScene& s, const std::filesystem::path& path) {
-  stereo::write_stereo_yaml(s.rig, path);  // image size, K1 D1 K2 D2 R T
+  sim::stereo::write_stereo_yaml(s.rig, path);  // image size, K1 D1 K2 D2 R T
   cv::FileStorage fs(path.string(), cv::FileStorage::APPEND);
   if (!fs.isOpened()) throw std::runtime_error(path.string() + ": cannot open for writing");
   cv::Mat a, b;
@@ -85,7 +85,7 @@ void write_calibration_scene(const CalibrationScene& s, const std::filesystem::p
 CalibrationScene twin_calibration_scene() {
   constexpr double kDistance = 2.8, kBaseline = 0.5, kFocal = 1740.0;
   CalibrationScene s;
-  s.rig = stereo::make_rig({1280, 1024}, kFocal, kBaseline, std::atan(0.5 * kBaseline / kDistance));
+  s.rig = sim::stereo::make_rig({1280, 1024}, kFocal, kBaseline, std::atan(0.5 * kBaseline / kDistance));
   // workcell.cpp: the base 0.6 m in front of the door centre at B, axes along camL.
   const Eigen::Vector3d centre_B(0.5 * kBaseline - 0.17, 0.1, kDistance);
   s.T_base_camL = make_transform_rotvec(Eigen::Vector3d::Zero(), -(centre_B - Eigen::Vector3d(0, 0, 0.6)));
@@ -98,4 +98,4 @@ CalibrationScene twin_calibration_scene() {
   return s;
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

@@ -5,11 +5,11 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 namespace {
 
-const stereo::PinholeCamera& camera(const stereo::StereoRig& rig, stereo::Eye eye) {
-  return eye == stereo::Eye::kLeft ? rig.left : rig.right;
+const sim::stereo::PinholeCamera& camera(const sim::stereo::StereoRig& rig, sim::stereo::Eye eye) {
+  return eye == sim::stereo::Eye::kLeft ? rig.left : rig.right;
 }
 
 // Grey level of the board's plane at (x, y) in the target frame.
@@ -24,18 +24,19 @@ double shade(const ChessboardTarget& t, const TargetImaging& im, double x, doubl
 
 }  // namespace
 
-ChessboardRenderer::ChessboardRenderer(stereo::StereoRig rig, ChessboardTarget target)
+ChessboardRenderer::ChessboardRenderer(sim::stereo::StereoRig rig, ChessboardTarget target)
     : rig_(std::move(rig)), target_(target) {
   for (int e = 0; e < 2; ++e) {
-    normalized_[e] = stereo::normalized_pixel_grid(camera(rig_, static_cast<stereo::Eye>(e)), rig_.size);
+    normalized_[e] =
+        sim::stereo::normalized_pixel_grid(camera(rig_, static_cast<sim::stereo::Eye>(e)), rig_.size);
   }
 }
 
-cv::Mat ChessboardRenderer::render(stereo::Eye eye, const Transform& T_camL_target, const TargetImaging& im,
-                                   cv::RNG& rng) const {
-  const stereo::PinholeCamera& cam = camera(rig_, eye);
+cv::Mat ChessboardRenderer::render(sim::stereo::Eye eye, const Transform& T_camL_target,
+                                   const TargetImaging& im, cv::RNG& rng) const {
+  const sim::stereo::PinholeCamera& cam = camera(rig_, eye);
   const Transform T_cam_target =
-      (eye == stereo::Eye::kLeft ? Transform::Identity() : rig_.T_camR_camL) * T_camL_target;
+      (eye == sim::stereo::Eye::kLeft ? Transform::Identity() : rig_.T_camR_camL) * T_camL_target;
   cv::Mat1f img(rig_.size, static_cast<float>(im.background));
   // The board's outline (with border) projected: only pixels inside its bounding box
   // see the board.
@@ -82,7 +83,7 @@ cv::Mat ChessboardRenderer::render(stereo::Eye eye, const Transform& T_camL_targ
         }
       img(v, u) = static_cast<float>(sum / (kSub * kSub));
     }
-  return stereo::expose_8bit(img, im.blur_sigma, im.noise_sigma, rng);
+  return sim::stereo::expose_8bit(img, im.blur_sigma, im.noise_sigma, rng);
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

@@ -5,7 +5,7 @@
 #include <limits>
 #include <random>
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 namespace {
 
 constexpr double kNone = std::numeric_limits<double>::infinity();
@@ -93,4 +93,4 @@ std::vector<Eigen::Vector3f> scan_sphere_target(const SphereTarget& target, cons
   return out;
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

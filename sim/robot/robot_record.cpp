@@ -5,7 +5,7 @@
 
 #include "dentmark/common/atomic_file.h"
 
-namespace dentmark::sim {
+namespace dentmark::sim::robot {
 namespace {
 
 nlohmann::json pose_json(const Transform& T) {
@@ -40,4 +40,4 @@ void write_robot_record(const std::string& path, const std::vector<TipSample>& t
   }
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::robot

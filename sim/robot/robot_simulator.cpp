@@ -14,7 +14,7 @@
 #include <cstring>
 #include <stdexcept>
 
-namespace dentmark::sim {
+namespace dentmark::sim::robot {
 
 namespace rl = robot_link;
 
@@ -467,4 +467,4 @@ void RobotSimulator::publish_status(double now) {
               rl::kWordOrder);
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::robot

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace dentmark::sim {
+namespace dentmark::sim::robot {
 
 TrapezoidProfile::TrapezoidProfile(double distance, double v_max, double a_max)
     : distance_(distance), a_(a_max) {
@@ -35,4 +35,4 @@ double TrapezoidProfile::speed(double t) const {
   return a_ * (duration_ - t);
 }
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::robot

@@ -1,6 +1,6 @@
 #include "dentmark/sim/stereo/door_model.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 DoorModel make_door(DoorKind kind) {
   using V = Eigen::Vector2d;
@@ -30,4 +30,4 @@ DoorModel make_door(DoorKind kind) {
   return door;
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

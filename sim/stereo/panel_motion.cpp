@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numbers>
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 double PanelMotion::travel(double t) const {
   if (stop_at < 0.0 || t <= stop_at) return speed * t;
@@ -32,4 +32,4 @@ Transform PanelMotion::T_camL_panel(double t) const {
          about_centre.inverse() * T_camL_panel0;
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

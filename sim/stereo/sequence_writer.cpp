@@ -1,19 +1,16 @@
 #include "dentmark/sim/stereo/sequence_writer.h"
 
 #include <cmath>
-#include <fstream>
-#include <iomanip>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
-#include "dentmark/common/stereo_index.h"
+#include "dentmark/common/replay_files.h"
 #include "dentmark/sim/stereo/panel_motion.h"
 #include "dentmark/sim/stereo/stereo_renderer.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 namespace fs = std::filesystem;
 namespace {
 
@@ -30,13 +27,6 @@ void check_options(const SequenceOptions& o) {
     bad("start offset or yaw out of range");
   if (!(o.noise_sigma >= 0.0) || !(o.blur_sigma >= 0.0) || !(o.seed_error >= 0.0))
     bad("negative noise/blur/seed error");
-}
-
-void write_points(const fs::path& path, const std::vector<Eigen::Vector3d>& pts) {
-  std::ofstream f(path);
-  f << "x,y,z\n" << std::setprecision(12);
-  for (const auto& p : pts) f << p.x() << "," << p.y() << "," << p.z() << "\n";
-  if (!f) throw SequenceError(path.string() + ": write failed");
 }
 
 void render_into(const SequenceOptions& o, const fs::path& dir) {
@@ -67,27 +57,19 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
 
   cv::RNG rng(o.seed);
   {  // Seeds: the right-image corners of frame 0, deliberately a few pixels off.
-    cv::Mat seeds(static_cast<int>(door.features.size()), 2, CV_32F);
-    for (std::size_t i = 0; i < door.features.size(); ++i) {
-      const cv::Point2d p =
-          renderer.project(Eye::kRight, pose0, {door.features[i].x(), door.features[i].y(), 0.0});
-      seeds.at<float>(static_cast<int>(i), 0) =
-          static_cast<float>(p.x + rng.uniform(-o.seed_error, o.seed_error));
-      seeds.at<float>(static_cast<int>(i), 1) =
-          static_cast<float>(p.y + rng.uniform(-o.seed_error, o.seed_error));
+    std::vector<cv::Point2f> seeds;
+    for (const auto& f : door.features) {
+      const cv::Point2d p = renderer.project(Eye::kRight, pose0, {f.x(), f.y(), 0.0});
+      const auto x = static_cast<float>(p.x + rng.uniform(-o.seed_error, o.seed_error));
+      const auto y = static_cast<float>(p.y + rng.uniform(-o.seed_error, o.seed_error));
+      seeds.emplace_back(x, y);
     }
-    cv::FileStorage sf((dir / "seeds.yaml").string(), cv::FileStorage::WRITE);
-    sf << "seeds_right" << seeds;
+    files::write_replay_seeds(dir / "seeds.yaml", seeds);
   }
-  std::vector<Eigen::Vector3d> eval, feats;
-  for (const auto& q : door.lower_panel_points) eval.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  for (const auto& q : door.features) feats.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  write_points(dir / "eval_points.csv", eval);
-  write_points(dir / "features.csv", feats);
+  files::write_replay_points(dir / "eval_points.csv", pose0, door.lower_panel_points);
+  files::write_replay_points(dir / "features.csv", pose0, door.features);
 
-  std::ofstream frames(dir / "frames.csv"), truth(dir / "truth.csv");
-  files::write_stereo_index_header(frames);
-  truth << "index,t,m00,m01,m02,m03,m10,m11,m12,m13,m20,m21,m22,m23\n" << std::setprecision(15);
+  files::ReplayFrameWriter frames(dir);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
   for (int k = 0; k < n; ++k) {
     const double t = k / o.fps;
@@ -103,28 +85,22 @@ void render_into(const SequenceOptions& o, const fs::path& dir) {
       arm.b = pose * Eigen::Vector3d(-0.48, -1.6, -0.6);
       c.occluder = arm;
     }
-    std::ostringstream name;
-    name << std::setw(6) << std::setfill('0') << k << ".png";
+    const std::string name = files::replay_image_name(k);
     for (Eye eye : {Eye::kLeft, Eye::kRight}) {
       RenderConditions ce = c;
       if (eye == Eye::kRight) ce.gain *= 0.96, ce.offset = 3.0;  // the two sensors never match exactly
       cv::Mat img = renderer.render(eye, pose, ce, rng);
       if (o.colour) cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
-      const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name.str();
+      const fs::path p = dir / (eye == Eye::kLeft ? "left" : "right") / name;
       try {
         image::write_png(p.string(), img, 1);
       } catch (const image::ImageError& e) {
         throw SequenceError(e.what());
       }
     }
-    files::write_stereo_index_line(frames, k, t, "left/" + name.str(), "right/" + name.str());
-    const Transform m = motion.motion(t);
-    truth << k << "," << t;
-    for (int r = 0; r < 3; ++r)
-      for (int col = 0; col < 4; ++col) truth << "," << m.matrix()(r, col);
-    truth << "\n";
+    frames.add(k, t, "left/" + name, "right/" + name, motion.motion(t).matrix());
   }
-  if (!frames || !truth) throw SequenceError(dir.string() + ": write failed");
+  frames.finish();
 }
 
 }  // namespace
@@ -138,4 +114,4 @@ void write_sequence(const SequenceOptions& options, const fs::path& dir) {
   }
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -5,7 +5,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 namespace {
 
 // One straight edge of a convex polygon: outward unit normal m and offset c, so
@@ -167,4 +167,4 @@ cv::Mat StereoRenderer::render(Eye eye, const Transform& T_camL_panel, const Ren
   return expose_8bit(img, conditions.blur_sigma, conditions.noise_sigma, rng);
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -7,7 +7,7 @@
 
 #include "dentmark/sim/stereo/sequence_writer.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 StereoRig make_rig(cv::Size size, double focal_px, double baseline_m, double toe_in_rad, double k1) {
   StereoRig rig;
@@ -65,4 +65,4 @@ cv::Mat expose_8bit(cv::Mat1f image, double blur_sigma, double noise_sigma, cv::
   return out;
 }
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numbers>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 double Conveyor::travel(double t) const {
   if (stop_at < 0.0 || t <= stop_at) return speed * t;
@@ -41,4 +41,4 @@ Eigen::Isometry3d Conveyor::T_camL_panel(double t) const {
   return pose;
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -3,7 +3,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 Eigen::Vector2d BrownConrady::distort(const Eigen::Vector2d& xy) const {
   const double x = xy.x(), y = xy.y(), r2 = x * x + y * y;
@@ -33,4 +33,4 @@ Eigen::Vector2d BrownConrady::unproject(const Eigen::Vector2d& pixel) const {
   return xy;
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -2,7 +2,6 @@
 
 #include <Eigen/Core>
 #include <cmath>
-#include <fstream>
 #include <iomanip>
 #include <numbers>
 #include <opencv2/core/eigen.hpp>
@@ -11,11 +10,11 @@
 
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/image/png_io.h"
-#include "dentmark/common/stereo_index.h"
+#include "dentmark/common/replay_files.h"
 #include "dentmark/sim/stereo_raytrace/conveyor.h"
 #include "dentmark/sim/stereo_raytrace/ray_tracer.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 namespace fs = std::filesystem;
 namespace {
 
@@ -80,13 +79,6 @@ void write_calibration(const Rig& rig, cv::Size size, const fs::path& path) {
      << "R" << r << "T" << t;
 }
 
-void write_points(const fs::path& path, const std::vector<Eigen::Vector3d>& pts) {
-  std::ofstream f(path);
-  f << "x,y,z\n" << std::setprecision(12);
-  for (const auto& p : pts) f << p.x() << "," << p.y() << "," << p.z() << "\n";
-  if (!f) throw RaySequenceError(path.string() + ": write failed");
-}
-
 Eigen::Vector2d project(const BrownConrady& lens, const Eigen::Isometry3d& T_cam_camL,
                         const Eigen::Vector3d& p) {
   const Eigen::Vector3d q = T_cam_camL * p;
@@ -121,25 +113,19 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
   {
     std::uniform_real_distribution<double> jitter(-o.seed_error, o.seed_error);
     const Eigen::Isometry3d T_camR_camL = rig.T_camL_camR.inverse();
-    cv::Mat seeds(static_cast<int>(door.features.size()), 2, CV_32F);
-    for (std::size_t i = 0; i < door.features.size(); ++i) {
-      const Eigen::Vector2d p = project(
-          rig.right, T_camR_camL, pose0 * Eigen::Vector3d(door.features[i].x(), door.features[i].y(), 0.0));
-      seeds.at<float>(static_cast<int>(i), 0) = static_cast<float>(p.x() + jitter(rng));
-      seeds.at<float>(static_cast<int>(i), 1) = static_cast<float>(p.y() + jitter(rng));
+    std::vector<cv::Point2f> seeds;
+    for (const auto& f : door.features) {
+      const Eigen::Vector2d p = project(rig.right, T_camR_camL, pose0 * Eigen::Vector3d(f.x(), f.y(), 0.0));
+      const auto x = static_cast<float>(p.x() + jitter(rng));
+      const auto y = static_cast<float>(p.y() + jitter(rng));
+      seeds.emplace_back(x, y);
     }
-    cv::FileStorage sf((dir / "seeds.yaml").string(), cv::FileStorage::WRITE);
-    sf << "seeds_right" << seeds;
+    files::write_replay_seeds(dir / "seeds.yaml", seeds);
   }
-  std::vector<Eigen::Vector3d> eval, feats;
-  for (const auto& q : door.eval_points) eval.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  for (const auto& q : door.features) feats.push_back(pose0 * Eigen::Vector3d(q.x(), q.y(), 0.0));
-  write_points(dir / "eval_points.csv", eval);
-  write_points(dir / "features.csv", feats);
+  files::write_replay_points(dir / "eval_points.csv", pose0, door.eval_points);
+  files::write_replay_points(dir / "features.csv", pose0, door.features);
 
-  std::ofstream frames(dir / "frames.csv"), truth(dir / "truth.csv");
-  files::write_stereo_index_header(frames);
-  truth << "index,t,m00,m01,m02,m03,m10,m11,m12,m13,m20,m21,m22,m23\n" << std::setprecision(15);
+  files::ReplayFrameWriter frames(dir);
   const int n = static_cast<int>(std::floor(o.seconds * o.fps + 1e-9)) + 1;
   const Eigen::Isometry3d M0inv = line.T_camL_panel(0.0).inverse();
   for (int k = 0; k < n; ++k) {
@@ -153,8 +139,7 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
     Lighting light;
     light.level = 1.0 + o.lighting_drift * std::sin(2.0 * std::numbers::pi * t / 13.0 + 0.4);
     const double depth = line.T_camL_panel(t).translation().z();
-    std::ostringstream name;
-    name << std::setw(6) << std::setfill('0') << k << ".png";
+    const std::string name = files::replay_image_name(k);
     for (int eye = 0; eye < 2; ++eye) {
       const RayTracer& tracer = eye == 0 ? left : right;
       SensorOptions s = o.sensor;
@@ -162,21 +147,17 @@ void render_into(const RaySequenceOptions& o, const fs::path& dir) {
       const double pitch = o.pixel_pitch;
       s.defocus_radius = circle_of_confusion_px(depth, o.focus, o.f_number, o.focal_px * pitch, pitch);
       const cv::Mat3b img = expose(tracer.render(door, arm, poses, light), tracer.corner_rays(), s, rng);
-      const fs::path p = dir / (eye == 0 ? "left" : "right") / name.str();
+      const fs::path p = dir / (eye == 0 ? "left" : "right") / name;
       try {
         image::write_png(p.string(), img, 1);
       } catch (const image::ImageError& e) {
         throw RaySequenceError(e.what());
       }
     }
-    files::write_stereo_index_line(frames, k, t, "left/" + name.str(), "right/" + name.str());
     const Eigen::Isometry3d m = line.T_camL_panel(t) * M0inv;
-    truth << k << "," << t;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) truth << "," << m.matrix()(r, c);
-    truth << "\n";
+    frames.add(k, t, "left/" + name, "right/" + name, m.matrix());
   }
-  if (!frames || !truth) throw RaySequenceError(dir.string() + ": write failed");
+  frames.finish();
 }
 
 }  // namespace
@@ -203,4 +184,4 @@ void write_ray_sequence(const RaySequenceOptions& options, const fs::path& dir) 
   }
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

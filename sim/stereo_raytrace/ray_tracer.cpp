@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 RayTracer::RayTracer(BrownConrady lens, Eigen::Isometry3d T_camL_cam, cv::Size size, int supersample)
     : lens_(lens), T_camL_cam_(T_camL_cam), size_(size), n_(std::max(1, supersample)) {
@@ -96,4 +96,4 @@ cv::Mat3f RayTracer::render(const Door& door, const std::optional<Arm>& arm,
   return out;
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -3,7 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 namespace {
 
 // Crossing-number test.
@@ -94,4 +94,4 @@ Hit trace(const Door& door, const std::optional<Arm>& arm, const Eigen::Vector3d
   return h;
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 namespace {
 
 // A uniform disc of radius r px, each kernel cell weighted by its covered area.
@@ -92,4 +92,4 @@ cv::Mat3b expose(const cv::Mat3f& irradiance, const cv::Mat2d& corner_rays, cons
   return out;
 }
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

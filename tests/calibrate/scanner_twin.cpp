@@ -51,10 +51,10 @@ void write_transform(const fs::path& path, const Transform& t) {
 }
 
 int scene(const fs::path& dir, int captures, std::uint64_t seed) {
-  const stereo::StereoRig rig = sim::twin_calibration_scene().rig;
+  const sim::stereo::StereoRig rig = sim::calibration::twin_calibration_scene().rig;
   fs::create_directories(dir / "cal");
   fs::create_directories(dir / "captures");
-  stereo::write_stereo_yaml(rig, dir / "cal" / "stereo.yaml");
+  sim::stereo::write_stereo_yaml(rig, dir / "cal" / "stereo.yaml");
   const Transform T_camL_sls = true_T_camL_sls();
   write_transform(dir / "truth.yaml", T_camL_sls);
   simulation::render_scanner_captures(rig, T_camL_sls, kPositionA, captures, seed, dir / "captures",

@@ -21,7 +21,7 @@ using namespace dentmark;
 
 namespace {
 
-calibrate::ToolTarget target_of(const sim::CalibrationScene& s) {
+calibrate::ToolTarget target_of(const sim::calibration::CalibrationScene& s) {
   calibrate::ToolTarget t;
   t.spec.kind = calibrate::TargetKind::kChessboard;
   t.spec.cols = s.target.cols;
@@ -32,10 +32,10 @@ calibrate::ToolTarget target_of(const sim::CalibrationScene& s) {
 }
 
 int scene(const std::filesystem::path& dir) {
-  const sim::CalibrationScene s = sim::twin_calibration_scene();
+  const sim::calibration::CalibrationScene s = sim::calibration::twin_calibration_scene();
   std::filesystem::create_directories(dir / "cal");
-  sim::write_calibration_scene(s, dir / "scene.yaml");
-  stereo::write_stereo_yaml(s.rig, dir / "cal" / "stereo.yaml");
+  sim::calibration::write_calibration_scene(s, dir / "scene.yaml");
+  sim::stereo::write_stereo_yaml(s.rig, dir / "cal" / "stereo.yaml");
   const Eigen::AngleAxisd aa(s.T_tool_target.linear());
   const Eigen::Vector3d r = aa.angle() * aa.axis(), t = s.T_tool_target.translation();
   std::printf("%.6f %.6f %.6f %.6f %.6f %.6f\n", t.x(), t.y(), t.z(), r.x(), r.y(), r.z());
@@ -43,7 +43,7 @@ int scene(const std::filesystem::path& dir) {
 }
 
 int check(const std::string& scene_file, const std::string& robot_file, double max_m) {
-  const sim::CalibrationScene s = sim::read_calibration_scene(scene_file);
+  const sim::calibration::CalibrationScene s = sim::calibration::read_calibration_scene(scene_file);
   const Transform est = calibrate::load_robot_calibration(robot_file);
   const calibrate::ToolTarget target = target_of(s);
   calibrate::PosePlanOptions plan;

@@ -11,7 +11,7 @@ void BM_StatusReadTcp(benchmark::State& state) {
   clock::MonotonicClock clock;
   auto cfg = test::sim_config();
   cfg.heartbeat_timeout = 1e6;
-  auto sim = sim::RobotSimulator::serve_tcp(cfg, clock);
+  auto sim = sim::robot::RobotSimulator::serve_tcp(cfg, clock);
   hal::ModbusRobot robot(test::tcp_config(sim->port()), clock);
   robot.connect();
   for (auto _ : state) benchmark::DoNotOptimize(robot.status());
@@ -25,7 +25,7 @@ void BM_CommandAndWaitTcp(benchmark::State& state) {
   clock::SimClock clock(rate);
   auto cfg = test::sim_config();
   cfg.heartbeat_timeout = 1e6;
-  auto sim = sim::RobotSimulator::serve_tcp(cfg, clock);
+  auto sim = sim::robot::RobotSimulator::serve_tcp(cfg, clock);
   hal::ModbusRobot robot(test::tcp_config(sim->port()), clock);
   robot.connect();
   bool there = false;

@@ -14,8 +14,8 @@ namespace dentmark::test {
 // qemu-user, where every request costs more real time.
 inline constexpr double kRate = 5.0;
 
-inline sim::RobotSimConfig sim_config() {
-  sim::RobotSimConfig c;
+inline sim::robot::RobotSimConfig sim_config() {
+  sim::robot::RobotSimConfig c;
   c.heartbeat_timeout = 1.0;  // s (simulated) = 0.2 s real at kRate
   return c;
 }

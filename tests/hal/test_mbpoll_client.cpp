@@ -28,7 +28,7 @@ class MbpollClient : public ::testing::Test {
   void SetUp() override {
     auto cfg = test::sim_config();
     cfg.heartbeat_timeout = 20.0;  // one mbpoll run per request: slow heartbeats
-    sim_ = sim::RobotSimulator::serve_tcp(cfg, clock_);
+    sim_ = sim::robot::RobotSimulator::serve_tcp(cfg, clock_);
   }
   test::Completed mbpoll(std::vector<std::string> args) {
     std::vector<std::string> cmd{"mbpoll", "-m", "tcp", "-p", std::to_string(sim_->port()), "-a", "1",
@@ -43,7 +43,7 @@ class MbpollClient : public ::testing::Test {
   }
 
   clock::SimClock clock_{10.0};
-  std::unique_ptr<sim::RobotSimulator> sim_;
+  std::unique_ptr<sim::robot::RobotSimulator> sim_;
 };
 
 TEST_F(MbpollClient, DrivesTheSimulatorThroughTheDocumentedMap) {

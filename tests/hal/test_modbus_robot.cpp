@@ -20,9 +20,9 @@ using test::pose;
 class ModbusRobotTcp : public ::testing::Test {
  protected:
   void SetUp() override { start(test::sim_config()); }
-  void start(const sim::RobotSimConfig& cfg) {
+  void start(const sim::robot::RobotSimConfig& cfg) {
     robot.reset();
-    sim = sim::RobotSimulator::serve_tcp(cfg, clock);
+    sim = sim::robot::RobotSimulator::serve_tcp(cfg, clock);
     ASSERT_GT(sim->port(), 0);
     robot = std::make_unique<ModbusRobot>(test::tcp_config(sim->port()), clock);
     robot->connect();
@@ -32,7 +32,7 @@ class ModbusRobotTcp : public ::testing::Test {
   }
 
   clock::SimClock clock{test::kRate};
-  std::unique_ptr<sim::RobotSimulator> sim;
+  std::unique_ptr<sim::robot::RobotSimulator> sim;
   std::unique_ptr<ModbusRobot> robot;
 };
 

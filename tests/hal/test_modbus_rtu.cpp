@@ -30,10 +30,10 @@ class ModbusRobotRtu : public ::testing::Test {
          ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     ASSERT_TRUE(std::filesystem::exists(edge_end)) << "socat made no pty pair in 5 s";
-    sim::RtuEndpoint ep;
+    sim::robot::RtuEndpoint ep;
     ep.device = robot_end;
     ep.baud = 115200;
-    sim_ = sim::RobotSimulator::serve_rtu(test::sim_config(), clock_, ep);
+    sim_ = sim::robot::RobotSimulator::serve_rtu(test::sim_config(), clock_, ep);
     board::ModbusConfig m;
     m.transport = board::ModbusTransport::kRtu;
     m.device = edge_end;
@@ -57,7 +57,7 @@ class ModbusRobotRtu : public ::testing::Test {
   clock::SimClock clock_{test::kRate};
   std::string dir_;
   pid_t socat_ = -1;
-  std::unique_ptr<sim::RobotSimulator> sim_;
+  std::unique_ptr<sim::robot::RobotSimulator> sim_;
   std::unique_ptr<ModbusRobot> robot_;
 };
 

@@ -20,9 +20,9 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   simulation::ScenarioOptions scenario;
   scenario.position = 'A';
   const simulation::Workcell cell = simulation::make_workcell(scenario, Transform::Identity(), 1.0, 0.8);
-  const stereo::StereoRig& rig = cell.rig;
-  const stereo::StereoRenderer renderer(rig, cell.door);
-  stereo::PanelMotion line = cell.motion;
+  const sim::stereo::StereoRig& rig = cell.rig;
+  const sim::stereo::StereoRenderer renderer(rig, cell.door);
+  sim::stereo::PanelMotion line = cell.motion;
   line.vibration = 0.0;
   // The scan is at t = 0; the cameras expose at 0.07 + 0.1 k s.
   const double first_frame = 0.07;
@@ -34,14 +34,14 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
     f.t = first_frame + 0.1 * static_cast<double>(k);
     f.index = k++;
     const Transform pose = line.T_camL_panel(f.t);
-    f.left = renderer.render(stereo::Eye::kLeft, pose, {}, rng);
-    f.right = renderer.render(stereo::Eye::kRight, pose, {}, rng);
+    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
+    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
     return f;
   };
   std::vector<cv::Point2f> seeds;
   for (const auto& q : renderer.door().features) {
     const cv::Point2d p =
-        renderer.project(stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
+        renderer.project(sim::stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
     seeds.emplace_back(static_cast<float>(p.x) + 1.5f, static_cast<float>(p.y) - 1.0f);
   }
   TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);
@@ -72,7 +72,7 @@ TEST(TrackingMotionSource, EachEstimateComesOutTheModelledProcessingTimeAfterIts
   scenario.position = 'A';
   scenario.width = 640, scenario.height = 512, scenario.focal_px = 870.0;
   const simulation::Workcell cell = simulation::make_workcell(scenario, Transform::Identity(), 1.0, 0.8);
-  const stereo::StereoRenderer renderer(cell.rig, cell.door);
+  const sim::stereo::StereoRenderer renderer(cell.rig, cell.door);
   clock::LockstepClock clock(0.0);
   constexpr double kPeriod = 0.1, kProcessing = 0.03;
   constexpr int kFrames = 8;
@@ -85,14 +85,14 @@ TEST(TrackingMotionSource, EachEstimateComesOutTheModelledProcessingTimeAfterIts
     f.index = k++;
     clock.sleep_until(f.t);  // the cameras expose at their rate
     const Transform pose = cell.motion.T_camL_panel(f.t);
-    f.left = renderer.render(stereo::Eye::kLeft, pose, {}, rng);
-    f.right = renderer.render(stereo::Eye::kRight, pose, {}, rng);
+    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
+    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
     return f;
   };
   std::vector<cv::Point2f> seeds;
   for (const auto& q : renderer.door().features) {
     const cv::Point2d p =
-        renderer.project(stereo::Eye::kRight, cell.motion.T_camL_panel(0.0), {q.x(), q.y(), 0.0});
+        renderer.project(sim::stereo::Eye::kRight, cell.motion.T_camL_panel(0.0), {q.x(), q.y(), 0.0});
     seeds.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
   }
   TrackingMotionSource source(test::exact_calibration(cell.rig), seeds, frames, {}, &clock, kProcessing);

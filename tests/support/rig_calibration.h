@@ -6,7 +6,7 @@
 
 namespace dentmark::test {
 
-inline track::StereoCalibration exact_calibration(const stereo::StereoRig& rig) {
+inline track::StereoCalibration exact_calibration(const sim::stereo::StereoRig& rig) {
   track::StereoCalibration c;
   c.size = rig.size;
   c.left.K = rig.left.K;

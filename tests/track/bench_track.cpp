@@ -53,9 +53,9 @@ const Frames& frames() {
   // stereo --seconds 3`), for machines where rendering it here takes minutes (the
   // emulated guest of the system tests).
   static const Frames f = rendered("DENTMARK_BENCH_SEQUENCE", "poly", [](const std::filesystem::path& dir) {
-    stereo::SequenceOptions o;  // 1280 x 1024, f = 1740 px, 0.5 m baseline, 2.8 m
+    sim::stereo::SequenceOptions o;  // 1280 x 1024, f = 1740 px, 0.5 m baseline, 2.8 m
     o.seconds = 3.0;
-    stereo::write_sequence(o, dir);
+    sim::stereo::write_sequence(o, dir);
   });
   return f;
 }
@@ -64,9 +64,9 @@ const Frames& frames() {
 const Frames& ray_frames() {
   static const Frames f =
       rendered("DENTMARK_BENCH_RAY_SEQUENCE", "ray", [](const std::filesystem::path& dir) {
-        raytrace::RaySequenceOptions o;
+        sim::raytrace::RaySequenceOptions o;
         o.seconds = 3.0;
-        raytrace::write_ray_sequence(o, dir);
+        sim::raytrace::write_ray_sequence(o, dir);
       });
   return f;
 }

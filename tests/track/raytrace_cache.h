@@ -34,19 +34,21 @@ inline std::filesystem::path cached(const std::string& name, const std::string& 
   return dir;
 }
 
-inline std::filesystem::path ray_traced(const std::string& name, const raytrace::RaySequenceOptions& o) {
-  return cached("ray-" + name, raytrace::describe(o),
-                [&](const std::filesystem::path& d) { raytrace::write_ray_sequence(o, d); });
+inline std::filesystem::path ray_traced(const std::string& name, const sim::raytrace::RaySequenceOptions& o) {
+  return cached("ray-" + name, sim::raytrace::describe(o),
+                [&](const std::filesystem::path& d) { sim::raytrace::write_ray_sequence(o, d); });
 }
 
 // sim/stereo's sequences have no description; the key lists the options the tests set.
-inline std::filesystem::path polygon_rendered(const std::string& name, const stereo::SequenceOptions& o) {
+inline std::filesystem::path polygon_rendered(const std::string& name,
+                                              const sim::stereo::SequenceOptions& o) {
   const std::string key = std::to_string(o.width) + "x" + std::to_string(o.height) + " f" +
                           std::to_string(o.focal_px) + " s" + std::to_string(o.seconds) + " fps" +
                           std::to_string(o.fps) + " v" + std::to_string(o.speed) + " occ" +
                           std::to_string(o.occlude) + " stop" + std::to_string(o.stop_at) + "/" +
                           std::to_string(o.stop_for) + " seed" + std::to_string(o.seed);
-  return cached("poly-" + name, key, [&](const std::filesystem::path& d) { stereo::write_sequence(o, d); });
+  return cached("poly-" + name, key,
+                [&](const std::filesystem::path& d) { sim::stereo::write_sequence(o, d); });
 }
 
 }  // namespace dentmark::track::testing

@@ -16,8 +16,8 @@ using TempDir = dentmark::test::TempDir;
 
 // The station's geometry at half resolution (640 x 512, f = 870 px): the same angles
 // as 1280 x 1024 at f = 1740 px, a quarter of the pixels, so tests stay fast.
-inline stereo::SequenceOptions small_sequence(double seconds, double fps = 10.0) {
-  stereo::SequenceOptions o;
+inline sim::stereo::SequenceOptions small_sequence(double seconds, double fps = 10.0) {
+  sim::stereo::SequenceOptions o;
   o.width = 640;
   o.height = 512;
   o.focal_px = 870.0;

@@ -14,15 +14,15 @@ namespace {
 using testing::AccuracyReport;
 using testing::measure;
 
-raytrace::RaySequenceOptions ray(double seconds, double fps = 10.0) {
-  raytrace::RaySequenceOptions o;
+sim::raytrace::RaySequenceOptions ray(double seconds, double fps = 10.0) {
+  sim::raytrace::RaySequenceOptions o;
   o.seconds = seconds;
   o.fps = fps;
   return o;
 }
 
-stereo::SequenceOptions poly(double seconds, double fps = 10.0) {
-  stereo::SequenceOptions o;
+sim::stereo::SequenceOptions poly(double seconds, double fps = 10.0) {
+  sim::stereo::SequenceOptions o;
   o.seconds = seconds;
   o.fps = fps;
   return o;

@@ -14,7 +14,7 @@
 #include "dentmark/sim/stereo_raytrace/ray_tracer.h"
 #include "dentmark/sim/stereo_raytrace/sensor.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 namespace {
 
 BrownConrady strong_lens() {
@@ -120,4 +120,4 @@ TEST(RayRenderer, ConveyorStopsAndRestartsSmoothly) {
 }
 
 }  // namespace
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

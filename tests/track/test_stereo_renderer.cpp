@@ -11,7 +11,7 @@
 #include "dentmark/sim/stereo/stereo_renderer.h"
 #include "sequence_fixture.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 namespace {
 
 TEST(StereoRenderer, CornersMoveByTheirTrueSubPixelDisplacement) {
@@ -83,4 +83,4 @@ TEST(StereoRenderer, RefusesANonEmptyDirectoryAndLeavesNothingBehind) {
 }
 
 }  // namespace
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -36,7 +36,7 @@ struct Taught {
   explicit Taught(bool rear_door = false) {
     auto o = testing::small_sequence(1.0);
     o.rear_door = rear_door;
-    stereo::write_sequence(o, tmp.path() / "teach");
+    sim::stereo::write_sequence(o, tmp.path() / "teach");
     save_panel_model(teach_sequence(tmp.path() / "teach"), model);
   }
 };
@@ -60,7 +60,7 @@ TEST_P(TeachAndAcquire, LaterPanelIsAcquiredWithoutSeedsAndTrackedWithinTheTarge
   o.seed = 11;
   o.seed_error = 60.0;  // the sequence's own seeds are useless: only the model can start it
   const auto dir = tmp.path() / "later";
-  stereo::write_sequence(o, dir);
+  sim::stereo::write_sequence(o, dir);
   const ReplayResult r = replay_sequence_with_model(dir, taught.model);
   const MotionErrors e = compare_with_truth(r, dir / "truth.csv", dir / "eval_points.csv");
   std::printf("shift %.2f m, yaw %.3f rad, gain %.2f: %d features, mean %.3f mm, worst %.3f mm\n",
@@ -96,7 +96,7 @@ TEST(ModelSearch, TheFoundFeaturesAreTheTaughtOnes) {
   o.gain = 0.8;
   o.seed = 5;
   o.seed_error = 0.0;  // seeds.yaml then holds the true camR corners
-  stereo::write_sequence(o, tmp.path() / "s");
+  sim::stereo::write_sequence(o, tmp.path() / "s");
   const Sequence seq = load_sequence(tmp.path() / "s");
   const auto truth = load_seeds(tmp.path() / "s" / "seeds.yaml", seq.calibration.size);
   const cv::Mat l = load_grey(seq.frames[0].left, seq.calibration.size),
@@ -116,7 +116,7 @@ TEST(ModelSearch, AModelOfAnotherPanelDoesNotLock) {
   TempDir tmp;
   auto o = testing::small_sequence(0.5);
   o.start_offset = 0.05;
-  stereo::write_sequence(o, tmp.path() / "front");
+  sim::stereo::write_sequence(o, tmp.path() / "front");
   const std::string e = error_of([&] { replay_sequence_with_model(tmp.path() / "front", rear.model); });
   EXPECT_NE(e.find("panel model not found"), std::string::npos) << e;
   EXPECT_NE(e.find("model.yaml"), std::string::npos) << e;
@@ -128,7 +128,7 @@ TEST(ModelSearch, APanelOutOfViewDoesNotLock) {
   TempDir tmp;
   auto o = testing::small_sequence(0.0);
   o.start_offset = 3.0;  // the door is still up the line: only the background is seen
-  stereo::write_sequence(o, tmp.path() / "empty");
+  sim::stereo::write_sequence(o, tmp.path() / "empty");
   const std::string e = error_of([&] { replay_sequence_with_model(tmp.path() / "empty", taught.model); });
   EXPECT_NE(e.find("panel model not found"), std::string::npos) << e;
 }
@@ -193,7 +193,7 @@ TEST(PanelModel, BadModelFilesAreOneClearLineNamingFileAndField) {
   TempDir seq;
   auto o = testing::small_sequence(0.0);
   o.width = 800;
-  stereo::write_sequence(o, seq.path() / "s");
+  sim::stereo::write_sequence(o, seq.path() / "s");
   e = error_of([&] { replay_sequence_with_model(seq.path() / "s", taught.model); });
   EXPECT_NE(e.find("model.yaml: field image_width"), std::string::npos) << e;
 }
@@ -244,7 +244,7 @@ TEST(PanelModel, TeachAtALaterFrameFollowsThePanelThere) {
   TempDir tmp;
   auto o = testing::small_sequence(1.0);
   o.speed = 0.1;  // 10 cm in the second
-  stereo::write_sequence(o, tmp.path() / "s");
+  sim::stereo::write_sequence(o, tmp.path() / "s");
   const PanelModel first = teach_sequence(tmp.path() / "s");
   const PanelModel last = teach_sequence(tmp.path() / "s", 10);
   ASSERT_EQ(first.features.size(), last.features.size());

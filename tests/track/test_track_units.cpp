@@ -111,7 +111,7 @@ class SequenceFiles : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = tmp_.path() / "seq";
-    stereo::write_sequence(testing::small_sequence(0.1), dir_);
+    sim::stereo::write_sequence(testing::small_sequence(0.1), dir_);
   }
   void write(const std::string& name, const std::string& text) { std::ofstream(dir_ / name) << text; }
   std::string error_of(const std::function<void()>& f) {

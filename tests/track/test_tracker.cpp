@@ -20,10 +20,10 @@ struct Outcome {
   MotionErrors errors;
 };
 
-Outcome run(const stereo::SequenceOptions& o, long from = -1, long to = -1) {
+Outcome run(const sim::stereo::SequenceOptions& o, long from = -1, long to = -1) {
   TempDir tmp;
   const auto dir = tmp.path() / "seq";
-  stereo::write_sequence(o, dir);
+  sim::stereo::write_sequence(o, dir);
   Outcome r;
   r.result = replay_sequence(dir);
   r.errors = compare_with_truth(r.result, dir / "truth.csv", dir / "eval_points.csv", from, to);
@@ -100,7 +100,7 @@ TEST(Tracker, HandlesColourImagesDistortionBlurAndLighting) {
 TEST(Tracker, UnreadableFrameBecomesNotOkAndTrackingGoesOn) {
   TempDir tmp;
   const auto dir = tmp.path() / "seq";
-  stereo::write_sequence(testing::small_sequence(1.0), dir);
+  sim::stereo::write_sequence(testing::small_sequence(1.0), dir);
   { std::ofstream(dir / "left" / "000004.png", std::ios::trunc) << "not a png"; }
   const ReplayResult r = replay_sequence(dir);
   ASSERT_EQ(r.frames.size(), 11u);
@@ -113,7 +113,7 @@ TEST(Tracker, UnreadableFrameBecomesNotOkAndTrackingGoesOn) {
 TEST(Tracker, SeedsOnFeaturelessBackgroundAreAClearError) {
   TempDir tmp;
   const auto dir = tmp.path() / "seq";
-  stereo::write_sequence(testing::small_sequence(0.2), dir);
+  sim::stereo::write_sequence(testing::small_sequence(0.2), dir);
   {
     cv::FileStorage fs((dir / "seeds.yaml").string(), cv::FileStorage::WRITE);
     fs << "seeds_right" << cv::Mat(cv::Matx<float, 3, 2>(5, 5, 10, 500, 630, 8));

@@ -2,8 +2,8 @@
 
 namespace dentmark::hal {
 
-SimRobot::SimRobot(const sim::RobotSimConfig& config, clock::Clock& clock, double request_timeout)
-    : sim_(sim::RobotSimulator::serve_tcp(config, clock, "127.0.0.1", 0)) {
+SimRobot::SimRobot(const sim::robot::RobotSimConfig& config, clock::Clock& clock, double request_timeout)
+    : sim_(sim::robot::RobotSimulator::serve_tcp(config, clock, "127.0.0.1", 0)) {
   board::ModbusConfig m;
   m.transport = board::ModbusTransport::kTcp;
   m.host = "127.0.0.1";

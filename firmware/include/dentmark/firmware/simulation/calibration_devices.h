@@ -23,8 +23,8 @@ namespace dentmark::simulation {
 struct CalibrationDevices {
   std::unique_ptr<hal::Robot> robot;
   std::unique_ptr<hal::Camera> left, right;
-  std::optional<sim::CalibrationScene> scene;  // simulated cameras only
-  std::unique_ptr<sim::ChessboardRenderer> renderer;
+  std::optional<sim::calibration::CalibrationScene> scene;  // simulated cameras only
+  std::unique_ptr<sim::calibration::ChessboardRenderer> renderer;
 };
 
 // Throws std::runtime_error (hal errors, a sim board without a scene, a scene with a real
@@ -32,10 +32,9 @@ struct CalibrationDevices {
 // true_tool_pose, when given, says where the simulated tool truly is (the robot
 // simulator's pose with its accuracy error and repeatability); the target is rendered
 // there instead of at the pose the robot reports.
-std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
-                                                             std::optional<sim::CalibrationScene> scene,
-                                                             clock::Clock& clock,
-                                                             std::function<Transform()> true_tool_pose = {});
+std::unique_ptr<CalibrationDevices> open_calibration_devices(
+    const board::BoardConfig& board, std::optional<sim::calibration::CalibrationScene> scene,
+    clock::Clock& clock, std::function<Transform()> true_tool_pose = {});
 // The same with the scene read from a file (--sim-scene; empty: none).
 std::unique_ptr<CalibrationDevices> open_calibration_devices(const board::BoardConfig& board,
                                                              const std::string& sim_scene,

@@ -39,13 +39,13 @@ struct SelfCalibrationResult {
 // twin's board (its cameras and limits); 'robot' the robot simulator's configuration
 // for the scenario. Throws std::runtime_error naming the step that failed.
 SelfCalibrationResult self_calibrate(const Workcell& cell, const board::BoardConfig& board,
-                                     const sim::RobotSimConfig& robot,
+                                     const sim::robot::RobotSimConfig& robot,
                                      const std::filesystem::path& cache_dir);
 
 // Renders `captures` captures of the sphere target near 'centre' (camL, m) into 'dir':
 // scan<N>.ply (sls frame), left<N>.png, right<N>.png, and the target's drawing to
 // 'target_yaml'. Shared by the twin's commissioning and the scanner calibration's test.
-void render_scanner_captures(const stereo::StereoRig& rig, const Transform& T_camL_sls,
+void render_scanner_captures(const sim::stereo::StereoRig& rig, const Transform& T_camL_sls,
                              const Eigen::Vector3d& centre, int captures, std::uint64_t seed,
                              const std::filesystem::path& dir, const std::filesystem::path& target_yaml);
 

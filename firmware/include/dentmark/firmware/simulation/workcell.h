@@ -34,9 +34,9 @@ struct ScenarioOptions {
 };
 
 struct Workcell {
-  stereo::StereoRig rig;
-  stereo::DoorModel door;
-  stereo::PanelMotion motion;  // true; t = 0 is the scan
+  sim::stereo::StereoRig rig;
+  sim::stereo::DoorModel door;
+  sim::stereo::PanelMotion motion;  // true; t = 0 is the scan
   // Where the scan's door frame sits on the rendered door: the scan's panel frame
   // (origin at a corner, y up, z out) in the renderer's panel frame (centre, y down, z in).
   Transform T_door_scanpanel = Transform::Identity();

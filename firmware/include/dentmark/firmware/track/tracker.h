@@ -103,6 +103,10 @@ class Tracker {
               const std::vector<bool>& valid);
   FrameResult fit_and_filter(long index, double t, std::vector<Eigen::Vector3d>& current,
                              std::vector<bool>& valid);
+  // start()'s last stage, the reference taken: the first frame kept for re-cutting
+  // templates, the filter, line and quality figures reset, (pl, pr) the previous frame.
+  void begin_run(const cv::Mat& left, const cv::Mat& right, const ImagePyramid& pl, const ImagePyramid& pr,
+                 double t);
   bool reacquire(std::size_t i, const Transform& motion, const ImagePyramid& left, const ImagePyramid& right,
                  Eigen::Vector3d& p_camL);
 

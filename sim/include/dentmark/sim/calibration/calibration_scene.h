@@ -15,10 +15,10 @@
 #include "dentmark/sim/calibration/chessboard_renderer.h"
 #include "dentmark/sim/stereo/stereo_rig.h"
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 
 struct CalibrationScene {
-  stereo::StereoRig rig;
+  sim::stereo::StereoRig rig;
   Transform T_base_camL = Transform::Identity();    // the truth
   Transform T_tool_target = Transform::Identity();  // the target's mount (as drawn)
   ChessboardTarget target;
@@ -35,4 +35,4 @@ void write_calibration_scene(const CalibrationScene& scene, const std::filesyste
 // the flange, 20 mm in front of the tool point.
 CalibrationScene twin_calibration_scene();
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

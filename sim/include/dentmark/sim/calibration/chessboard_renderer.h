@@ -11,7 +11,7 @@
 #include "dentmark/sim/stereo/stereo_renderer.h"
 #include "dentmark/sim/stereo/stereo_rig.h"
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 
 // COLS × ROWS inner corners, corner (i, j) at (i·square, j·square, 0) in the target
 // frame (calibrate::TargetSpec's convention), one white square of border around the
@@ -31,20 +31,20 @@ struct TargetImaging {
 
 class ChessboardRenderer {
  public:
-  ChessboardRenderer(stereo::StereoRig rig, ChessboardTarget target);
+  ChessboardRenderer(sim::stereo::StereoRig rig, ChessboardTarget target);
 
   // 8-bit grey image of the board at T_camL_target seen by one eye. The board is
   // drawn from either side (a visibility decision is the caller's).
-  cv::Mat render(stereo::Eye eye, const Transform& T_camL_target, const TargetImaging& imaging,
+  cv::Mat render(sim::stereo::Eye eye, const Transform& T_camL_target, const TargetImaging& imaging,
                  cv::RNG& rng) const;
 
-  const stereo::StereoRig& rig() const { return rig_; }
+  const sim::stereo::StereoRig& rig() const { return rig_; }
   const ChessboardTarget& target() const { return target_; }
 
  private:
-  stereo::StereoRig rig_;
+  sim::stereo::StereoRig rig_;
   ChessboardTarget target_;
   cv::Mat normalized_[2];  // per eye: CV_32FC2 undistorted normalised coordinates of each pixel centre
 };
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

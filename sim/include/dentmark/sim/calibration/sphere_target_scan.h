@@ -13,7 +13,7 @@
 #include "dentmark/common/geometry/transform.h"
 #include "dentmark/sim/calibration/chessboard_renderer.h"
 
-namespace dentmark::sim {
+namespace dentmark::sim::calibration {
 
 // Board frame: corner 0 at the origin, z out of the printed face (ChessboardTarget).
 struct SphereTarget {
@@ -40,4 +40,4 @@ struct SlsImaging {
 std::vector<Eigen::Vector3f> scan_sphere_target(const SphereTarget& target, const Transform& T_sls_board,
                                                 const SlsImaging& imaging);
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::calibration

@@ -25,7 +25,7 @@
 #include "dentmark/common/robot_link/register_map.h"
 #include "dentmark/sim/robot/trapezoid_profile.h"
 
-namespace dentmark::sim {
+namespace dentmark::sim::robot {
 
 struct RobotSimConfig {
   Eigen::Vector3d workspace_min{-0.60, -0.80, -0.10};  // m, in base
@@ -163,4 +163,4 @@ class RobotSimulator {
   std::vector<SprayRecord> sprays_;
 };
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::robot

@@ -4,7 +4,7 @@
 // the distance is too short to reach v_max). Closed form, so the simulated tool's
 // position at any instant does not depend on how often the simulator steps.
 
-namespace dentmark::sim {
+namespace dentmark::sim::robot {
 
 class TrapezoidProfile {
  public:
@@ -26,4 +26,4 @@ class TrapezoidProfile {
   double duration_ = 0.0;
 };
 
-}  // namespace dentmark::sim
+}  // namespace dentmark::sim::robot

@@ -9,7 +9,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 struct PanelShape {
   std::vector<Eigen::Vector2d> polygon;                // convex, either winding
@@ -30,4 +30,4 @@ enum class DoorKind { kFront = 0, kRear = 1 };
 
 DoorModel make_door(DoorKind kind = DoorKind::kFront);
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -6,7 +6,7 @@
 
 #include "dentmark/common/geometry/transform.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 struct PanelMotion {
   Transform T_camL_panel0 = Transform::Identity();       // pose at t = 0
@@ -25,4 +25,4 @@ struct PanelMotion {
   Transform motion(double t) const { return T_camL_panel(t) * T_camL_panel(0.0).inverse(); }
 };
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

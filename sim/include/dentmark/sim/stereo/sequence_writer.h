@@ -1,5 +1,6 @@
 #pragma once
-// Writes a rendered stereo sequence in the tracker's replay format plus ground truth:
+// Writes a rendered stereo sequence in the tracker's replay format plus ground truth
+// (written through common/replay_files.h and common/stereo_index.h):
 //   stereo.yaml  (image_width, image_height, K1, D1, K2, D2, R, T; p_camR = R p_camL + T)
 //   frames.csv   (index,t,left,right; PNG paths relative to the directory)
 //   seeds.yaml   (seeds_right: N x 2 float, rough right-image corners of frame 0)
@@ -12,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 struct SequenceOptions {
   int width = 1280;
@@ -53,4 +54,4 @@ class SequenceError : public std::runtime_error {
 // SequenceError on bad options or I/O failure.
 void write_sequence(const SequenceOptions& options, const std::filesystem::path& dir);
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

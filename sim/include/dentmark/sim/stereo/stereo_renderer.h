@@ -10,7 +10,7 @@
 #include "dentmark/sim/stereo/door_model.h"
 #include "dentmark/sim/stereo/stereo_rig.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 enum class Eye { kLeft = 0, kRight = 1 };
 
@@ -50,4 +50,4 @@ class StereoRenderer {
   cv::Mat normalized_[2];  // per eye: CV_32FC2 undistorted normalised coordinates of each pixel
 };
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

@@ -7,7 +7,7 @@
 
 #include "dentmark/common/geometry/transform.h"
 
-namespace dentmark::stereo {
+namespace dentmark::sim::stereo {
 
 struct PinholeCamera {
   cv::Matx33d K = cv::Matx33d::eye();
@@ -38,4 +38,4 @@ cv::Mat expose_8bit(cv::Mat1f image, double blur_sigma, double noise_sigma, cv::
 // Writes image_width, image_height, K1, D1, K2, D2, R, T as OpenCV FileStorage YAML.
 void write_stereo_yaml(const StereoRig& rig, const std::filesystem::path& path);
 
-}  // namespace dentmark::stereo
+}  // namespace dentmark::sim::stereo

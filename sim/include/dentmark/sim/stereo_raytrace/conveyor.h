@@ -5,7 +5,7 @@
 
 #include <Eigen/Geometry>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct Conveyor {
   Eigen::Isometry3d T_camL_panel0 = Eigen::Isometry3d::Identity();  // pose at t = 0
@@ -23,4 +23,4 @@ struct Conveyor {
   Eigen::Isometry3d motion(double t) const { return T_camL_panel(t) * T_camL_panel(0.0).inverse(); }
 };
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

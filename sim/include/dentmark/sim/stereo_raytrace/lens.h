@@ -7,7 +7,7 @@
 #include <Eigen/Core>
 #include <array>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct BrownConrady {
   double fx = 1740.0, fy = 1740.0, cx = 640.0, cy = 512.0;
@@ -21,4 +21,4 @@ struct BrownConrady {
   Eigen::Vector2d distort(const Eigen::Vector2d& xy) const;
 };
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

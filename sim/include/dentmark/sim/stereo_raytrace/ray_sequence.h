@@ -4,7 +4,8 @@
 // tracing with supersampled edges (ray_tracer.h) through Brown-Conrady lenses (lens.h),
 // motion blur over the exposure, defocus, vignetting, a lighting gradient fixed in the
 // station that drifts over time, Poisson and read noise on a Bayer sensor with
-// demosaicing and gamma (sensor.h). It writes the tracker's replay format:
+// demosaicing and gamma (sensor.h). It writes the tracker's replay format (through
+// common/replay_files.h and common/stereo_index.h, as sim/stereo does):
 //   stereo.yaml  (image_width, image_height, K1, D1, K2, D2, R, T; the exact lenses)
 //   frames.csv   (index,t,left,right; 8-bit BGR PNGs; t is the middle of the exposure)
 //   seeds.yaml   (seeds_right: rough right-image corners of frame 0)
@@ -19,7 +20,7 @@
 
 #include "dentmark/sim/stereo_raytrace/sensor.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct RaySequenceOptions {
   int width = 1280;
@@ -59,4 +60,4 @@ std::string describe(const RaySequenceOptions& o);
 // Throws RaySequenceError on bad options or I/O failure.
 void write_ray_sequence(const RaySequenceOptions& options, const std::filesystem::path& dir);
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -15,7 +15,7 @@
 #include "dentmark/sim/stereo_raytrace/lens.h"
 #include "dentmark/sim/stereo_raytrace/scene.h"
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 // Light on the panel, fixed in the station: irradiance at a camL point relative to the
 // centre of the view, a linear gradient across the station.
@@ -48,4 +48,4 @@ class RayTracer {
   cv::Mat2d corners_;  // (H + 1) x (W + 1)
 };
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -10,7 +10,7 @@
 #include <optional>
 #include <vector>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct Region {
   std::vector<Eigen::Vector2d> outline;  // simple polygon, either winding
@@ -44,4 +44,4 @@ struct Hit {
 Hit trace(const Door& door, const std::optional<Arm>& arm, const Eigen::Vector3d& origin,
           const Eigen::Vector3d& direction);
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

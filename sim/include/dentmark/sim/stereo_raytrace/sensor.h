@@ -8,7 +8,7 @@
 #include <opencv2/core.hpp>
 #include <random>
 
-namespace dentmark::raytrace {
+namespace dentmark::sim::raytrace {
 
 struct SensorOptions {
   double electrons_at_white = 14000.0;           // reflectance 1 under light level 1
@@ -29,4 +29,4 @@ double circle_of_confusion_px(double depth, double focus, double f_number, doubl
 cv::Mat3b expose(const cv::Mat3f& irradiance, const cv::Mat2d& corner_rays, const SensorOptions& o,
                  std::mt19937_64& rng);
 
-}  // namespace dentmark::raytrace
+}  // namespace dentmark::sim::raytrace

@@ -12,7 +12,7 @@ namespace dentmark::hal {
 
 class SimRobot final : public Robot {
  public:
-  SimRobot(const sim::RobotSimConfig& config, clock::Clock& clock, double request_timeout = 0.5);
+  SimRobot(const sim::robot::RobotSimConfig& config, clock::Clock& clock, double request_timeout = 0.5);
   void connect() override { client_->connect(); }
   void disconnect() override { client_->disconnect(); }
   bool connected() const override { return client_->connected(); }
@@ -25,10 +25,10 @@ class SimRobot final : public Robot {
   void heartbeat() override { client_->heartbeat(); }
   RobotStatus status() override { return client_->status(); }
 
-  sim::RobotSimulator& simulator() { return *sim_; }
+  sim::robot::RobotSimulator& simulator() { return *sim_; }
 
  private:
-  std::unique_ptr<sim::RobotSimulator> sim_;
+  std::unique_ptr<sim::robot::RobotSimulator> sim_;
   std::unique_ptr<ModbusRobot> client_;
 };
 
