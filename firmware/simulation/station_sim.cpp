@@ -578,6 +578,43 @@ void take_reports(Result& result, const protocol::DefectList& list, const protoc
     }
 }
 
+// What one run recorded for scoring, once the station has stopped.
+struct RunRecord {
+  protocol::JobOutcome outcome;
+  std::optional<std::pair<protocol::DefectList, protocol::JobOutcome>> next;  // the next job's list, outcome
+  double t_next = std::numeric_limits<double>::infinity();                    // the next job's scan time
+};
+
+// The run's figures against the truth: valve pulses, reports, sprays, the time to safe
+// after a fault, and the same for the next job; sprays are split at its scan time.
+void score_run(ScenarioResult& result, const RunRecord& run, const ScenarioOptions& scenario,
+               const SimulationOptions& sim, const Workcell& cell, const protocol::DefectList& list,
+               const ScanTruth& truth, const board::BoardConfig& board, hal::SimGpio& gpio,
+               sim::robot::RobotSimulator& robot) {
+  constexpr double kNever = std::numeric_limits<double>::infinity();
+  const std::string& valve = board.gpio.sprayer_valve.name;
+  const std::vector<sim::robot::SprayRecord> sprays = robot.sprays();
+  note_valve(result, gpio, valve, 0.0, run.t_next);
+  take_reports(result, list, run.outcome);
+  score(result, cell, list, truth, sprays_between(sprays, 0.0, run.t_next), scenario.standoff);
+  if (!sim.faults.empty()) {
+    double first = sim.faults.front().after;
+    for (const Fault& f : sim.faults) first = std::min(first, f.after);
+    const double t_fault = cell.t_mark + first;
+    time_to_safe(result, t_fault, run.t_next, gpio.edges(), valve, robot.trajectory());
+    fault_detection(result, t_fault);
+  }
+  if (run.next) {
+    NextJobResult& n = result.next_job.emplace();
+    n.t_scan = run.t_next;
+    n.defects_sent = static_cast<int>(run.next->first.defects.size());
+    note_valve(n, gpio, valve, run.t_next, kNever);
+    take_reports(n, run.next->first, run.next->second);
+    // Scored against the truth through the first list (same ids, positions at t = 0).
+    score(n, cell, list, truth, sprays_between(sprays, run.t_next, kNever), scenario.standoff);
+  }
+}
+
 }  // namespace
 
 ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
@@ -711,42 +748,20 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
     return {next, run_host(next, edge.port(), clock, go, t_next)};
   };
 
-  protocol::JobOutcome outcome;
-  std::optional<std::pair<protocol::DefectList, protocol::JobOutcome>> next;
+  RunRecord run;
   try {
     if (sim.serve)
-      outcome = serve_host(list, edge, list_arrived, sim);
+      run.outcome = serve_host(list, edge, list_arrived, sim);
     else
-      outcome = run_host(list, edge.port(), clock, start_time);
-    if (sim.next_job && !sim.serve) next = run_next_job();
+      run.outcome = run_host(list, edge.port(), clock, start_time);
+    if (sim.next_job && !sim.serve) run.next = run_next_job();
   } catch (const std::exception&) {
     finish_run();
     throw;
   }
   finish_run();
-  const double t_next = next ? line_stop.t_next : std::numeric_limits<double>::infinity();
-  const std::vector<sim::robot::SprayRecord> sprays = robot_sim->sprays();
-  note_valve(result, gpio, board.gpio.sprayer_valve.name, 0.0, t_next);
-  take_reports(result, list, outcome);
-  score(result, cell, list, truth, sprays_between(sprays, 0.0, t_next), scenario.standoff);
-  if (!sim.faults.empty()) {
-    double first = sim.faults.front().after;
-    for (const Fault& f : sim.faults) first = std::min(first, f.after);
-    const double t_fault = cell.t_mark + first;
-    time_to_safe(result, t_fault, t_next, gpio.edges(), board.gpio.sprayer_valve.name,
-                 robot_sim->trajectory());
-    fault_detection(result, t_fault);
-  }
-  if (next) {
-    NextJobResult& n = result.next_job.emplace();
-    n.t_scan = t_next;
-    n.defects_sent = static_cast<int>(next->first.defects.size());
-    note_valve(n, gpio, board.gpio.sprayer_valve.name, t_next, std::numeric_limits<double>::infinity());
-    take_reports(n, next->first, next->second);
-    // Scored against the truth through the first list (same ids, positions at t = 0).
-    score(n, cell, list, truth, sprays_between(sprays, t_next, std::numeric_limits<double>::infinity()),
-          scenario.standoff);
-  }
+  if (run.next) run.t_next = line_stop.t_next;
+  score_run(result, run, scenario, sim, cell, list, truth, board, gpio, *robot_sim);
   result.real_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - real_start).count();
   return result;
 }
