@@ -15,6 +15,24 @@
 namespace dentmark::station {
 namespace {
 
+// Both cameras' images of the door at one pose.
+void render_pair(const sim::stereo::StereoRenderer& renderer, const Transform& T_camL_panel, cv::RNG& rng,
+                 StereoFrame& f) {
+  f.left = renderer.render(sim::stereo::Eye::kLeft, T_camL_panel, {}, rng);
+  f.right = renderer.render(sim::stereo::Eye::kRight, T_camL_panel, {}, rng);
+}
+
+// The door's features in the right image at a pose, moved by 'offset' pixels.
+std::vector<cv::Point2f> feature_seeds(const sim::stereo::StereoRenderer& renderer,
+                                       const Transform& T_camL_panel, cv::Point2f offset) {
+  std::vector<cv::Point2f> seeds;
+  for (const auto& q : renderer.door().features) {
+    const cv::Point2d p = renderer.project(sim::stereo::Eye::kRight, T_camL_panel, {q.x(), q.y(), 0.0});
+    seeds.emplace_back(static_cast<float>(p.x) + offset.x, static_cast<float>(p.y) + offset.y);
+  }
+  return seeds;
+}
+
 TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLine) {
   // The twin's workcell: the door at position A of the paper's station.
   simulation::ScenarioOptions scenario;
@@ -33,17 +51,11 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
     StereoFrame f;
     f.t = first_frame + 0.1 * static_cast<double>(k);
     f.index = k++;
-    const Transform pose = line.T_camL_panel(f.t);
-    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
-    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
+    render_pair(renderer, line.T_camL_panel(f.t), rng, f);
     return f;
   };
-  std::vector<cv::Point2f> seeds;
-  for (const auto& q : renderer.door().features) {
-    const cv::Point2d p =
-        renderer.project(sim::stereo::Eye::kRight, line.T_camL_panel(first_frame), {q.x(), q.y(), 0.0});
-    seeds.emplace_back(static_cast<float>(p.x) + 1.5f, static_cast<float>(p.y) - 1.0f);
-  }
+  const std::vector<cv::Point2f> seeds =
+      feature_seeds(renderer, line.T_camL_panel(first_frame), cv::Point2f(1.5f, -1.0f));
   TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);
   while (!source.ended()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_GE(source.frames_tracked(), 18);
@@ -84,17 +96,10 @@ TEST(TrackingMotionSource, EachEstimateComesOutTheModelledProcessingTimeAfterIts
     f.t = kPeriod * static_cast<double>(k);
     f.index = k++;
     clock.sleep_until(f.t);  // the cameras expose at their rate
-    const Transform pose = cell.motion.T_camL_panel(f.t);
-    f.left = renderer.render(sim::stereo::Eye::kLeft, pose, {}, rng);
-    f.right = renderer.render(sim::stereo::Eye::kRight, pose, {}, rng);
+    render_pair(renderer, cell.motion.T_camL_panel(f.t), rng, f);
     return f;
   };
-  std::vector<cv::Point2f> seeds;
-  for (const auto& q : renderer.door().features) {
-    const cv::Point2d p =
-        renderer.project(sim::stereo::Eye::kRight, cell.motion.T_camL_panel(0.0), {q.x(), q.y(), 0.0});
-    seeds.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
-  }
+  const std::vector<cv::Point2f> seeds = feature_seeds(renderer, cell.motion.T_camL_panel(0.0), {});
   TrackingMotionSource source(test::exact_calibration(cell.rig), seeds, frames, {}, &clock, kProcessing);
   std::vector<std::pair<double, double>> seen;  // (when asked, frame time of the newest estimate)
   clock::ParticipantThread observer(clock, [&] {
