@@ -4,6 +4,7 @@
 #include "dentmark/firmware/hal/gpio/sim_gpio.h"
 #include "dentmark/firmware/hal/robot/modbus_robot.h"
 #include "dentmark/firmware/hal/robot/sim_robot.h"
+#include "dentmark/sim/robot/robot_simulator.h"
 #ifdef DENTMARK_HAVE_GPIOD_V1
 #include "dentmark/firmware/hal/gpio/gpiod_gpio.h"
 #endif

@@ -615,6 +615,157 @@ void score_run(ScenarioResult& result, const RunRecord& run, const ScenarioOptio
   }
 }
 
+// When the twin's clock stands still: until the first list is out (the scan is at t = 0
+// exactly, the cameras take their first frame then, and the list arrives then); from a
+// job's end until the host side has its reports (the run's figures do not depend on how
+// long that takes); and while the line holds it for the next list (prepare_next_job).
+class ClockHolds {
+ public:
+  ClockHolds(clock::LockstepClock& clock, LineStop& line) : clock_(clock), line_(line) {}
+
+  // The first list is out: the line starts and time runs (once).
+  void start() {
+    if (!waiting_for_list_.exchange(false)) return;
+    {
+      std::lock_guard lock(line_.mutex);
+      line_.started = true;
+    }
+    clock_.notify_all(line_.changed);
+    clock_.resume();
+  }
+  // A job ended: time stops, once, until release_job_end.
+  void hold_at_job_end() {
+    if (!job_end_.exchange(true)) clock_.pause();
+  }
+  void release_job_end() {
+    if (job_end_.exchange(false)) clock_.resume();
+  }
+  // Time runs to the end of the run; a later job end (none is due) stops it no more.
+  void release_job_end_for_good() {
+    if (job_end_) clock_.resume();
+  }
+  // The line paused time for the next list; the host side releases it once it is out.
+  void hold_for_next() { next_ = true; }
+  void release_next() {
+    if (next_.exchange(false)) clock_.resume();
+  }
+
+ private:
+  clock::LockstepClock& clock_;
+  LineStop& line_;
+  std::atomic<bool> waiting_for_list_{true}, job_end_{false}, next_{false};
+};
+
+// The daemon as the twin runs it: the twin's board, scratch calibration and state, the
+// rendered cameras, the modelled frame time and the clock's holds. With 'serve', the
+// host is outside: its list's age (by its own clock) is run on the line before time starts.
+daemon::DaemonOptions twin_daemon_options(const SimulationOptions& sim, const ScenarioOptions& scenario,
+                                          const board::BoardConfig& board, const fs::path& scratch,
+                                          clock::LockstepClock& clock, ClockHolds& holds,
+                                          DoorCameras& cameras, std::atomic<bool>& list_arrived) {
+  daemon::DaemonOptions d;
+  d.board = board;
+  d.calibration_dir = scratch / "calibration";
+  d.state_dir = scratch / "state";
+  d.port = sim.serve ? sim.serve_port : 0;
+  d.bind_address = "127.0.0.1";
+  if (sim.serve) {
+    d.before_request = [&](const protocol::Decoded& req) {
+      const auto* l = std::get_if<protocol::DefectList>(&req.message);
+      if (l == nullptr || list_arrived.exchange(true)) return;
+      const double age = req.header.send_time - l->scan_time;
+      log::info("twin: the host's scan is " + std::to_string(age) + " s old; the line ran meanwhile");
+      clock.advance(std::max(0.0, age));
+    };
+    // Time runs once the list is in (its arrival stamped at the scan's age, not later).
+    d.after_request = [&](const protocol::Decoded& req) {
+      if (std::holds_alternative<protocol::DefectList>(req.message) && list_arrived) holds.start();
+    };
+  }
+  d.hal.render = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kLeft, t); };
+  d.hal.render_right = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kRight, t); };
+  d.hal.sim_frame_period = 1.0 / scenario.fps;
+  d.station.job.planner.chain.standoff = scenario.standoff;
+  d.station.firmware_version = "twin";
+  d.station.on_job_end = [&holds](std::uint64_t) { holds.hold_at_job_end(); };
+  d.tracking.grab_timeout = 1.0;
+  d.tracking.frame_processing_time = sim.frame_processing_time;
+  d.unix_time = [&clock] { return kEpoch + clock.now(); };
+  return d;
+}
+
+// The running twin: what the host side and the shutdown act on.
+struct RunningTwin {
+  clock::LockstepClock& clock;
+  ClockHolds& holds;
+  LineStop& line;
+  daemon::EdgeDaemon& edge;
+};
+
+// The next job, once the first has ended and the line has cleared its faults: the door
+// scanned again where it then is, sent while time is held.
+std::pair<protocol::DefectList, protocol::JobOutcome> run_next_job(RunningTwin& twin,
+                                                                   const protocol::DefectList& list,
+                                                                   const Workcell& cell) {
+  twin.edge.station().wait_idle(kJobEndGrace);
+  {
+    std::lock_guard lock(twin.line.mutex);
+    twin.line.first_job_over = true;
+  }
+  twin.clock.notify_all(twin.line.changed);
+  twin.holds.release_job_end();
+  double t_next = 0.0;
+  {
+    std::unique_lock lock(twin.line.mutex);
+    if (!twin.line.next_ready_changed.wait_for(lock, std::chrono::duration<double>(kRealReplyTimeout),
+                                               [&] { return twin.line.next_ready; }))
+      throw std::runtime_error("the twin's line did not clear its faults for the next job");
+    twin.holds.hold_for_next();
+    t_next = twin.line.t_next;
+  }
+  protocol::DefectList next = rescanned(list, cell, t_next);
+  return {next, run_host(
+                    next, twin.edge.port(), twin.clock, [&] { twin.holds.release_next(); }, t_next)};
+}
+
+// The host's side of the run: the list sent (or served to an outside host), its reports
+// collected, and with a next job, that one too.
+RunRecord run_host_side(RunningTwin& twin, const SimulationOptions& sim, protocol::DefectList& list,
+                        const Workcell& cell, std::atomic<bool>& list_arrived) {
+  RunRecord run;
+  if (sim.serve)
+    run.outcome = serve_host(list, twin.edge, list_arrived, sim);
+  else
+    run.outcome = run_host(list, twin.edge.port(), twin.clock, [&] { twin.holds.start(); });
+  if (sim.next_job && !sim.serve) run.next = run_next_job(twin, list, cell);
+  return run;
+}
+
+// Ends the run: time runs until the station is idle (the host may have had every report
+// before the job ended), the frame counts are noted, then the line, the daemon and the
+// robot stop.
+void finish_run(RunningTwin& twin, clock::ParticipantThread& line_thread, sim::robot::RobotSimulator& robot,
+                const ScenarioOptions& scenario, ScenarioResult& result) {
+  twin.holds.start();
+  twin.holds.release_next();
+  twin.edge.station().wait_idle(kJobEndGrace);
+  result.sim_seconds = twin.clock.now();
+  if (twin.edge.cameras()) {
+    result.frames_tracked = twin.edge.cameras()->pairs_captured();
+    // The cameras' frames from t = 0 to the end, both included.
+    result.frames_offered = static_cast<long>(std::floor(result.sim_seconds * scenario.fps + 1e-6)) + 1;
+  }
+  twin.holds.release_job_end_for_good();  // time runs again for the shutdown
+  {
+    std::lock_guard lock(twin.line.mutex);
+    twin.line.done = true;
+  }
+  twin.clock.notify_all(twin.line.changed);
+  line_thread.join();
+  twin.edge.stop();
+  robot.stop();
+}
+
 }  // namespace
 
 ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOptions& sim,
@@ -625,21 +776,9 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   if (list.panel_id.empty()) list.panel_id = "twin-door";
   board::BoardConfig board = twin_board(sim, scenario, cell);
 
-  // Time stands still from the start while the station is set up and the list goes out:
-  // the scan is at t = 0 exactly, the cameras take their first frame then, and the list
-  // arrives then.
   clock::LockstepClock clock(0.0);  // held until the list is out
-  std::atomic<bool> held{true};
   LineStop line_stop;
-  const auto start_time = [&] {
-    if (!held.exchange(false)) return;
-    {
-      std::lock_guard lock(line_stop.mutex);
-      line_stop.started = true;
-    }
-    clock.notify_all(line_stop.changed);
-    clock.resume();
-  };
+  ClockHolds holds(clock, line_stop);
   std::optional<SelfCalibrationResult> self;
   if (!sim.self_calibration_cache.empty())
     self = self_calibrate(cell, board, robot_config(scenario, cell, board), sim.self_calibration_cache);
@@ -650,41 +789,9 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   ScratchDir scratch;
   commission(cell, cameras.renderer(), list.panel_id, scratch.path / "calibration", self ? &*self : nullptr);
 
-  daemon::DaemonOptions d;
-  d.board = board;
-  d.calibration_dir = scratch.path / "calibration";
-  d.state_dir = scratch.path / "state";
-  d.port = sim.serve ? sim.serve_port : 0;
-  d.bind_address = "127.0.0.1";
   std::atomic<bool> list_arrived{false};
-  if (sim.serve)
-    d.before_request = [&](const protocol::Decoded& req) {
-      const auto* l = std::get_if<protocol::DefectList>(&req.message);
-      if (l == nullptr || list_arrived.exchange(true)) return;
-      // The host scanned `age` ago by its own clock: the line ran meanwhile.
-      const double age = req.header.send_time - l->scan_time;
-      log::info("twin: the host's scan is " + std::to_string(age) + " s old; the line ran meanwhile");
-      clock.advance(std::max(0.0, age));
-    };
-  // Time runs once the list is in (its arrival stamped at the scan's age, not later).
-  if (sim.serve)
-    d.after_request = [&](const protocol::Decoded& req) {
-      if (std::holds_alternative<protocol::DefectList>(req.message) && list_arrived) start_time();
-    };
-  d.hal.render = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kLeft, t); };
-  d.hal.render_right = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kRight, t); };
-  d.hal.sim_frame_period = 1.0 / scenario.fps;
-  d.station.job.planner.chain.standoff = scenario.standoff;
-  d.station.firmware_version = "twin";
-  // Time stops when the job ends: the run's figures do not depend on how long the host
-  // side takes to collect the last reports.
-  std::atomic<bool> ended_held{false};
-  d.station.on_job_end = [&](std::uint64_t) {
-    if (!ended_held.exchange(true)) clock.pause();
-  };
-  d.tracking.grab_timeout = 1.0;
-  d.tracking.frame_processing_time = sim.frame_processing_time;
-  d.unix_time = [&clock] { return kEpoch + clock.now(); };
+  daemon::DaemonOptions d =
+      twin_daemon_options(sim, scenario, board, scratch.path, clock, holds, cameras, list_arrived);
   if (sim.truth_motion)
     d.tracking_override = [&](const station::StationCalibration&) {
       return std::make_unique<TruthTracking>(cell.motion, clock);
@@ -699,67 +806,15 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   result.options = scenario;
   note_calibration(result, cell, self);
   result.defects_sent = static_cast<int>(list.defects.size());
-  std::atomic<bool> next_held{false};  // the line's hold for the next list
-  const auto finish_run = [&] {
-    start_time();
-    if (next_held.exchange(false)) clock.resume();
-    // The host may have every report before the job has ended (and held the clock).
-    edge.station().wait_idle(kJobEndGrace);
-    result.sim_seconds = clock.now();
-    if (edge.cameras()) {
-      result.frames_tracked = edge.cameras()->pairs_captured();
-      // The cameras' frames from t = 0 to the end, both included.
-      result.frames_offered = static_cast<long>(std::floor(result.sim_seconds * scenario.fps + 1e-6)) + 1;
-    }
-    if (ended_held) clock.resume();  // time runs again for the shutdown
-    {
-      std::lock_guard lock(line_stop.mutex);
-      line_stop.done = true;
-    }
-    clock.notify_all(line_stop.changed);
-    line.join();
-    edge.stop();
-    robot_sim->stop();
-  };
-
-  // The next job, once the first has ended and the line has cleared its faults: the
-  // door scanned again where it then is, sent while time is held.
-  const auto run_next_job = [&]() -> std::pair<protocol::DefectList, protocol::JobOutcome> {
-    edge.station().wait_idle(kJobEndGrace);
-    {
-      std::lock_guard lock(line_stop.mutex);
-      line_stop.first_job_over = true;
-    }
-    clock.notify_all(line_stop.changed);
-    if (ended_held.exchange(false)) clock.resume();
-    double t_next = 0.0;
-    {
-      std::unique_lock lock(line_stop.mutex);
-      if (!line_stop.next_ready_changed.wait_for(lock, std::chrono::duration<double>(kRealReplyTimeout),
-                                                 [&] { return line_stop.next_ready; }))
-        throw std::runtime_error("the twin's line did not clear its faults for the next job");
-      next_held = true;
-      t_next = line_stop.t_next;
-    }
-    protocol::DefectList next = rescanned(list, cell, t_next);
-    const auto go = [&] {
-      if (next_held.exchange(false)) clock.resume();
-    };
-    return {next, run_host(next, edge.port(), clock, go, t_next)};
-  };
-
+  RunningTwin twin{clock, holds, line_stop, edge};
   RunRecord run;
   try {
-    if (sim.serve)
-      run.outcome = serve_host(list, edge, list_arrived, sim);
-    else
-      run.outcome = run_host(list, edge.port(), clock, start_time);
-    if (sim.next_job && !sim.serve) run.next = run_next_job();
+    run = run_host_side(twin, sim, list, cell, list_arrived);
   } catch (const std::exception&) {
-    finish_run();
+    finish_run(twin, line, *robot_sim, scenario, result);
     throw;
   }
-  finish_run();
+  finish_run(twin, line, *robot_sim, scenario, result);
   if (run.next) run.t_next = line_stop.t_next;
   score_run(result, run, scenario, sim, cell, list, truth, board, gpio, *robot_sim);
   result.real_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - real_start).count();

@@ -66,7 +66,6 @@ void TrackingMotionSource::run() {
     if (processing_time_ > 0.0) clock_->sleep_for(processing_time_);  // the modelled board's time
     publish(r);
   }
-  ended_ = true;
 }
 
 void TrackingMotionSource::publish(const track::FrameResult& r) {

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "box_mean.h"
+#include "dentmark/common/nth_smallest.h"
 #include "design_rules.h"
 #include "patch_normal.h"
 
@@ -22,12 +23,6 @@ constexpr float kCoherence = 0.5f;      // anisotropy of a line's neighbourhood
 constexpr double kFlankFull = 0.6;      // share of a flank's samples that must be seen
 constexpr double kZoneReach = 0.030;    // m round the design candidates
 constexpr float kSpreadSigmas = 4.0f;   // threshold in the flanks' own spread
-
-float median_of(std::vector<float>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 }  // namespace
 
@@ -60,13 +55,13 @@ bool flanks_at(const cv::Mat& dev, int r, int c, double a, const std::vector<dou
     if (std::isfinite(vb)) behind.push_back(vb);
   }
   if (static_cast<int>(ahead.size()) < need || static_cast<int>(behind.size()) < need) return false;
-  const float ma = median_of(ahead), mb = median_of(behind);
+  const float ma = median_in_place(ahead), mb = median_in_place(behind);
   f.gap = std::abs(ma - mb), f.profile = 0.5f * (ma + mb);
   // Spread: the median absolute offset of both flanks from their own medians.
   std::vector<float>& d = ahead;
   for (float& v : d) v = std::abs(v - ma);
   for (const float v : behind) d.push_back(std::abs(v - mb));
-  f.spread = 1.4826f * median_of(d);
+  f.spread = static_cast<float>(kMadToSigma) * median_in_place(d);
   return true;
 }
 

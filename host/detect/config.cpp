@@ -38,6 +38,7 @@ DetectConfig load_config(const std::string& path) {
       {"min_diameter", {&c.min_diameter, 0.0, 1.0}},
       {"max_defect_diameter", {&c.max_defect_diameter, 1e-4, 5.0}},
       {"max_elongation", {&c.max_elongation, 1.0, 1000.0}},
+      {"min_line_length", {&c.min_line_length, 0.0, 5.0}},
       {"normal_patch", {&c.normal_patch, 1e-3, 1.0}},
       {"hole_depth", {&c.hole_depth, 1e-4, 1.0}},
       {"max_hole_diameter", {&c.max_hole_diameter, 0.0, 1.0}},

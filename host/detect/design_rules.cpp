@@ -43,7 +43,7 @@ CandidateShape shape_of(const std::vector<std::int32_t>& pixels, const HeightMap
 const char* design_reason(const CandidateShape& shape, const DetectConfig& cfg) {
   if (shape.touches_edge) return "touches a border or opening";
   if (shape.length > cfg.max_defect_diameter) return "larger than any defect (handle, panel shape)";
-  if (shape.length > 0.025 && shape.length / shape.width > cfg.max_elongation)
+  if (shape.length > cfg.min_line_length && shape.length / shape.width > cfg.max_elongation)
     return "long and thin (character line)";
   return nullptr;
 }

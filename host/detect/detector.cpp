@@ -437,7 +437,7 @@ void measure_candidates(const CandidateScene& scene, const std::vector<Candidate
 
 // Classification: every candidate into out, a design feature (out.features) or, by
 // classify_candidate, a dent or bump (out.defects) or noise (out.features), its pixels
-// labelled in out.labels (defects: their index; features: -2 - their index). A candidate
+// labelled in out.labels (defects: their index; features: feature_label(index)). A candidate
 // of the octree's alone (its normals vary, the deviation test saw nothing) on an outlier
 // spike's pixels is that spike's: its triangles' normals, and the trace its steep sides
 // leave on the smoothed map (a 35 um "bump" beside a cluster of three outliers, 3 mm
@@ -454,8 +454,7 @@ void classify_candidates(const std::vector<Candidate>& comps, const std::vector<
     if (comp.pixels.empty()) continue;
     const CandidateShape& shape = comp.shape;
     if (const char* why = is_design(comp)) {
-      for (auto k : comp.pixels)
-        out.labels[static_cast<std::size_t>(k)] = -2 - static_cast<int>(out.features.size());
+      for (auto k : comp.pixels) out.labels[static_cast<std::size_t>(k)] = feature_label(out.features.size());
       out.features.push_back(design_finding(comp, map, out.deviation, why));
       continue;
     }
@@ -467,7 +466,7 @@ void classify_candidates(const std::vector<Candidate>& comps, const std::vector<
     const bool is_defect =
         d.defect_class == protocol::DefectClass::kDent || d.defect_class == protocol::DefectClass::kBump;
     const int label =
-        is_defect ? static_cast<int>(out.defects.size()) : -2 - static_cast<int>(out.features.size());
+        is_defect ? static_cast<std::int32_t>(out.defects.size()) : feature_label(out.features.size());
     for (auto k : comp.pixels) out.labels[static_cast<std::size_t>(k)] = label;
     d.id = static_cast<std::uint32_t>(is_defect ? out.defects.size() : out.features.size());
     (is_defect ? out.defects : out.features).push_back(std::move(f));
@@ -666,12 +665,14 @@ Detection inspect_charts(const ingest::MeshView& input, const ingest::MeshView& 
       feature_at.push_back(owned(f) ? static_cast<std::int32_t>(out.features.size()) : -1);
       if (feature_at.back() >= 0) out.features.push_back(std::move(f));
     }
-    for (auto& l : part.labels)
-      l = l >= 0    ? defect_at[static_cast<std::size_t>(l)]
-          : l <= -2 ? (feature_at[static_cast<std::size_t>(-2 - l)] >= 0
-                           ? -2 - feature_at[static_cast<std::size_t>(-2 - l)]
-                           : -1)
-                    : -1;
+    for (auto& l : part.labels) {
+      if (l >= 0) {
+        l = defect_at[static_cast<std::size_t>(l)];
+      } else if (is_feature_label(l)) {
+        const std::int32_t kept = feature_at[feature_index(l)];
+        l = kept >= 0 ? feature_label(static_cast<std::size_t>(kept)) : kNoFinding;
+      }
+    }
     ChartMap chart{std::move(part.map), std::move(part.deviation), std::move(part.labels)};
     if (c == main) {
       out.map = std::move(chart.map);

@@ -90,8 +90,8 @@ void draw_feature_outlines(cv::Mat& image, const PanelMap& panel, const detect::
   for (int r = 0; r < map.rows; ++r)
     for (int c = 0; c < map.cols; ++c) {
       const std::int32_t l = panel.labels[static_cast<std::size_t>(r) * map.cols + c];
-      if (l <= -2 && det.features[static_cast<std::size_t>(-2 - l)].defect.defect_class ==
-                         protocol::DefectClass::kDesignFeature)
+      if (detect::is_feature_label(l) &&
+          det.features[detect::feature_index(l)].defect.defect_class == protocol::DefectClass::kDesignFeature)
         mask.at<std::uint8_t>(r, c) = 255;
     }
   std::vector<std::vector<cv::Point>> contours;
@@ -234,8 +234,8 @@ std::vector<std::array<std::uint8_t, 3>> marked_vertex_colours(const ingest::Mes
       col = det.defects[static_cast<std::size_t>(l)].defect.defect_class == protocol::DefectClass::kDent
                 ? std::array<std::uint8_t, 3>{220, 30, 30}
                 : std::array<std::uint8_t, 3>{30, 60, 230};
-    } else if (l <= -2 && det.features[static_cast<std::size_t>(-2 - l)].defect.defect_class ==
-                              protocol::DefectClass::kDesignFeature) {
+    } else if (detect::is_feature_label(l) && det.features[detect::feature_index(l)].defect.defect_class ==
+                                                  protocol::DefectClass::kDesignFeature) {
       col = {230, 200, 60};
     } else {
       continue;

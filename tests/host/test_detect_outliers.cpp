@@ -103,8 +103,9 @@ TEST(Detect, CleanPanelWithOutliersAndShuffledTrianglesHasNoDefects) {
       if (k < 0) continue;
       ++on_map;
       const int label = r.det.labels[static_cast<std::size_t>(k)];
-      on_design += label <= -2 && r.det.features[static_cast<std::size_t>(-2 - label)].defect.defect_class ==
-                                      protocol::DefectClass::kDesignFeature;
+      on_design += detect::is_feature_label(label) &&
+                   r.det.features[detect::feature_index(label)].defect.defect_class ==
+                       protocol::DefectClass::kDesignFeature;
     }
     EXPECT_GE(on_map, 5) << feature.name;
     EXPECT_GE(on_design, 0.8 * on_map) << feature.name;

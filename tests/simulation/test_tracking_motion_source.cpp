@@ -4,6 +4,8 @@
 // first estimate itself.
 #include <gtest/gtest.h>
 
+#include <atomic>
+
 #include "../support/rig_calibration.h"
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/simulation/workcell.h"
@@ -46,8 +48,13 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   const double first_frame = 0.07;
   long k = 0;
   cv::RNG rng(3);
+  // Set when the tracker asks past the last frame: all 20 have then been published.
+  std::atomic<bool> all_taken{false};
   StereoFrameSource frames = [&]() -> std::optional<StereoFrame> {
-    if (k >= 20) return std::nullopt;
+    if (k >= 20) {
+      all_taken = true;
+      return std::nullopt;
+    }
     StereoFrame f;
     f.t = first_frame + 0.1 * static_cast<double>(k);
     f.index = k++;
@@ -57,7 +64,7 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   const std::vector<cv::Point2f> seeds =
       feature_seeds(renderer, line.T_camL_panel(first_frame), cv::Point2f(1.5f, -1.0f));
   TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);
-  while (!source.ended()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  while (!all_taken) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_GE(source.frames_tracked(), 18);
 
   // M relative to the first frame, at the scan 0.07 s before it.

@@ -1,5 +1,7 @@
 #include "dentmark/firmware/hal/robot/sim_robot.h"
 
+#include "dentmark/sim/robot/robot_simulator.h"
+
 namespace dentmark::hal {
 
 SimRobot::SimRobot(const sim::robot::RobotSimConfig& config, clock::Clock& clock, double request_timeout)
@@ -12,5 +14,8 @@ SimRobot::SimRobot(const sim::robot::RobotSimConfig& config, clock::Clock& clock
   m.timeout = request_timeout;
   client_ = std::make_unique<ModbusRobot>(m, clock);
 }
+
+// The client disconnects before the simulator it talks to stops.
+SimRobot::~SimRobot() = default;
 
 }  // namespace dentmark::hal

@@ -52,8 +52,6 @@ class TrackingMotionSource final : public MotionSource {
   void stop();
   long frames_tracked() const { return frames_.load(); }
   long frames_failed() const { return failed_.load(); }
-  // True once the source has ended (no more frames).
-  bool ended() const { return ended_.load(); }
 
  private:
   void run();
@@ -65,7 +63,6 @@ class TrackingMotionSource final : public MotionSource {
   double processing_time_ = 0.0;
   clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
   std::atomic<bool> stop_{false};
-  std::atomic<bool> ended_{false};
   std::atomic<long> frames_{0};
   std::atomic<long> failed_{0};
   mutable std::mutex mutex_;

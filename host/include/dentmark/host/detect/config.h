@@ -23,8 +23,10 @@ struct DetectConfig {
   double min_height = 3e-5;
   double min_diameter = 0.003;
   double max_defect_diameter = 0.08;
-  // Elongated groups (length/width above this and longer than 25 mm) are lines, not defects.
+  // Elongated groups (length/width above max_elongation and longer than min_line_length,
+  // m) are lines, not defects.
   double max_elongation = 4.0;
+  double min_line_length = 0.025;
   // Side of the square patch for the defect's normal (m).
   double normal_patch = 0.03;
   // Holes: an enclosed region no wider than max_hole_diameter (m) where the scanner saw

@@ -41,11 +41,24 @@ struct Finding {
   int pixels = 0;
 };
 
+// A map pixel's label: the index of the defect that owns it (>= 0), the index of the
+// feature that owns it encoded by feature_label (<= -2), or kNoFinding.
+inline constexpr std::int32_t kNoFinding = -1;
+constexpr std::int32_t feature_label(std::size_t index) {
+  return -2 - static_cast<std::int32_t>(index);
+}
+constexpr bool is_feature_label(std::int32_t label) {
+  return label <= -2;
+}
+constexpr std::size_t feature_index(std::int32_t label) {
+  return static_cast<std::size_t>(-2 - label);
+}
+
 // A height map as the pictures show it.
 struct ChartMap {
   HeightMap map;
   std::vector<float> deviation;      // per pixel, m along the normal (NaN: none)
-  std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
+  std::vector<std::int32_t> labels;  // per pixel: see feature_label
 };
 
 struct Detection {
@@ -56,7 +69,7 @@ struct Detection {
   // The scan's height map (a scan inspected in charts: its largest chart's).
   HeightMap map;
   std::vector<float> deviation;      // per pixel, m along the normal (NaN: none)
-  std::vector<std::int32_t> labels;  // per pixel: defect index, or -2 - feature index, or -1
+  std::vector<std::int32_t> labels;  // per pixel: see feature_label
   // The other charts' maps (charts.h), each labelled with the findings it owns.
   std::vector<ChartMap> more_charts;
 };

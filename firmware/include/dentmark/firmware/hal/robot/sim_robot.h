@@ -1,18 +1,24 @@
 #pragma once
 // The simulated robot backend: the robot simulator (sim/robot) in this process on a
 // loopback port, driven through the same Modbus client as the real robot, so the
-// twin exercises the real protocol path.
+// twin exercises the real protocol path. The simulator stays private to the HAL:
+// code that uses the HAL neither includes nor links it.
 
 #include <memory>
 
 #include "dentmark/firmware/hal/robot/modbus_robot.h"
-#include "dentmark/sim/robot/robot_simulator.h"
+
+namespace dentmark::sim::robot {
+struct RobotSimConfig;
+class RobotSimulator;
+}  // namespace dentmark::sim::robot
 
 namespace dentmark::hal {
 
 class SimRobot final : public Robot {
  public:
   SimRobot(const sim::robot::RobotSimConfig& config, clock::Clock& clock, double request_timeout = 0.5);
+  ~SimRobot() override;
   void connect() override { client_->connect(); }
   void disconnect() override { client_->disconnect(); }
   bool connected() const override { return client_->connected(); }
@@ -24,8 +30,6 @@ class SimRobot final : public Robot {
   std::uint16_t reset() override { return client_->reset(); }
   void heartbeat() override { client_->heartbeat(); }
   RobotStatus status() override { return client_->status(); }
-
-  sim::robot::RobotSimulator& simulator() { return *sim_; }
 
  private:
   std::unique_ptr<sim::robot::RobotSimulator> sim_;
