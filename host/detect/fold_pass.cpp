@@ -168,6 +168,12 @@ struct ReferenceSurface::FoldScratch {
   int row_tile[kMaxSide], col_tile[kMaxSide];
   double row_frac[kMaxSide], col_frac[kMaxSide];
   float col_frac_f[kMaxSide];
+  // The block's centre on the map plane (m), the rows and columns of tile centres it
+  // spans, and the runs of columns that share their four nearest tiles
+  // ([run_start[g], run_start[g + 1])).
+  double uc = 0.0, vc = 0.0;
+  int spans_y = 0, spans_x = 0;
+  int run_start[kMaxSpan + 1];
   // Per pixel in floats (twice as many per vector as doubles): heights within centimetres
   // of the map plane round to nanometres, as in blend(); their squared residuals, sums of
   // 25, to a few parts in 10^7.
@@ -349,20 +355,33 @@ namespace {
 // tiles (dx, dy) from each pixel's four nearest, as blend() and height_at() do, and the
 // pixel's own blend. Also each candidate's weighted squared residual and weight per
 // pixel, for the evidence. (After fold_block_grid.)
-DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScratch& fs) const {
-  const int P = fs.block, e = kEvidence, side = fs.side, s = radius_;
+void ReferenceSurface::fold_candidates(int bx, int by, FoldScratch& fs) const {
+  fold_block_pixels(bx, by, fs);
+  if (fs.spans_y > kMaxSpan || fs.spans_x > kMaxSpan) return;
+  for (int d = 0; d < kOwn; ++d) fold_side_candidate(d, fs);
+  fold_own_candidate(bx, by, fs);
+  // What the evidence sums.
+  const std::size_t area = static_cast<std::size_t>(fs.side * fs.side);
+  for (int d = 0; d < kCandidates; ++d)
+    evidence_terms(area, fs.z.data(), fs.w.data(), fs.f.data() + d * area, fs.have.data() + d * area,
+                   fs.resid.data() + d * area, fs.weight.data() + d * area);
+}
+
+// The block's pixels and its margin's: the map's height and weight (0 off the map), the
+// monomials 1, X, Y, X², XY, Y² of their position about the block's centre; and the
+// rows and columns of tile centres they span, with the runs of columns that share
+// their four nearest tiles.
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_block_pixels(int bx, int by, FoldScratch& fs) const {
+  const int P = fs.block, e = kEvidence, side = fs.side;
   const std::size_t area = static_cast<std::size_t>(side * side);
   const int r0 = by * P - e, c0 = bx * P - e;
-  const int *row_tile = fs.row_tile, *col_tile = fs.col_tile;
-  const double *row_frac = fs.row_frac, *col_frac = fs.col_frac;
   // A pixel's four nearest fits are at tiles (iy + n / 2, ix + n % 2), iy and ix its
-  // lower row and column of tile centres: over the block and its margin, one of kSpan
+  // lower row and column of tile centres: over the block and its margin, one of kMaxSpan
   // (a block of B tiles a side spans at most B + 2).
-  constexpr int kSpan = kMaxSpan;
-  const int spans_y = row_tile[side - 1] - row_tile[0] + 1, spans_x = col_tile[side - 1] - col_tile[0] + 1;
-  // Per pixel: the map's height and weight (0 off the map), the monomials 1, X, Y, X²,
-  // XY, Y² of its position about the block's centre.
-  const double uc = map_.u0 + (bx * P + 0.5 * P) * map_.pixel, vc = map_.v0 + (by * P + 0.5 * P) * map_.pixel;
+  fs.spans_y = fs.row_tile[side - 1] - fs.row_tile[0] + 1;
+  fs.spans_x = fs.col_tile[side - 1] - fs.col_tile[0] + 1;
+  fs.uc = map_.u0 + (bx * P + 0.5 * P) * map_.pixel;
+  fs.vc = map_.v0 + (by * P + 0.5 * P) * map_.pixel;
   for (int y = 0; y < side; ++y)
     for (int x = 0; x < side; ++x) {
       const std::size_t p = static_cast<std::size_t>(y * side + x);
@@ -373,86 +392,104 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
       fs.weighed[p] = weighed;
       fs.w[p] = weighed ? map_.weight[k] : 0.0f;
       fs.z[p] = weighed ? map_.w[k] : 0.0f;
-      const double X = weighed ? (map_.u[k] - uc) * local_scale_ : 0.0,
-                   Y = weighed ? (map_.v[k] - vc) * local_scale_ : 0.0;
+      const double X = weighed ? (map_.u[k] - fs.uc) * local_scale_ : 0.0,
+                   Y = weighed ? (map_.v[k] - fs.vc) * local_scale_ : 0.0;
       const double mono[6] = {1.0, X, Y, X * X, X * Y, Y * Y};
       for (int i = 0; i < 6; ++i) fs.mono[i * area + p] = static_cast<float>(mono[i]);
     }
-  if (spans_y > kSpan || spans_x > kSpan) return;
+  if (fs.spans_y > kMaxSpan || fs.spans_x > kMaxSpan) return;
   // The runs of columns that share their four nearest tiles: [run_start[g], run_start[g + 1]).
-  int run_start[kSpan + 1];
-  for (int g = 0, x = 0; g <= spans_x; ++g) {
-    while (x < side && col_tile[x] - col_tile[0] < g) ++x;
-    run_start[g] = x;
+  for (int g = 0, x = 0; g <= fs.spans_x; ++g) {
+    while (x < side && fs.col_tile[x] - fs.col_tile[0] < g) ++x;
+    fs.run_start[g] = x;
   }
+}
+
+// The fit of the window (dx, dy) tiles from each tile the block's pixels blend,
+// re-expanded about the block's centre, or none: beyond the map, or a window beside the
+// map's or the panel's edge, mostly empty, that fits its few pixels closely and
+// extrapolates wildly. Per tile: the six coefficients, the window's mean square and 1
+// (for the blend's weights), eight so that the blend vectorises.
+struct ReferenceSurface::SideFits {
+  alignas(32) double coef[kMaxSpan + 1][kMaxSpan + 1][8];
+  bool valid[kMaxSpan + 1][kMaxSpan + 1] = {};
+};
+
+void ReferenceSurface::side_fits(int dx, int dy, const FoldScratch& fs, SideFits& out) const {
+  for (int gy = 0; gy <= fs.spans_y; ++gy)
+    for (int gx = 0; gx <= fs.spans_x; ++gx) {
+      const int ty = std::clamp(fs.row_tile[0] + gy, 0, tiles_y_ - 1),
+                tx = std::clamp(fs.col_tile[0] + gx, 0, tiles_x_ - 1);
+      const int ny = ty + dy, nx = tx + dx;
+      if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) continue;
+      const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
+      out.valid[gy][gx] =
+          q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(ty) * tiles_x_ + tx].weight;
+      if (!out.valid[gy][gx]) continue;
+      // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
+      const double a = (fs.uc - q.cu) * local_scale_, b = (fs.vc - q.cv) * local_scale_;
+      const auto& c = q.c;
+      const double about[6] = {c(0) + c(1) * a + c(2) * b + c(3) * a * a + c(4) * a * b + c(5) * b * b,
+                               c(1) + 2.0 * c(3) * a + c(4) * b,
+                               c(2) + c(4) * a + 2.0 * c(5) * b,
+                               c(3),
+                               c(4),
+                               c(5)};
+      std::copy(about, about + 6, out.coef[gy][gx]);
+      out.coef[gy][gx][6] = q.mean_square, out.coef[gy][gx][7] = 1.0;
+    }
+}
+
+// Side candidate d over the block and its margin: each pixel's bilinear blend of the
+// side fits of its four nearest tiles, and of their windows' mean squares.
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_side_candidate(int d, FoldScratch& fs) const {
+  const int side = fs.side, s = radius_;
+  const std::size_t area = static_cast<std::size_t>(side * side);
+  SideFits fits;
+  side_fits(s * kDirections[d][0], s * kDirections[d][1], fs, fits);
+  bool cell_ok[kMaxSpan][kMaxSpan];
+  for (int gy = 0; gy < fs.spans_y; ++gy)
+    for (int gx = 0; gx < fs.spans_x; ++gx)
+      cell_ok[gy][gx] = fits.valid[gy][gx] && fits.valid[gy][gx + 1] && fits.valid[gy + 1][gx] &&
+                        fits.valid[gy + 1][gx + 1];
   const float *X = fs.mono.data() + area, *Y = X + area, *XX = Y + area, *XY = XX + area, *YY = XY + area;
-  for (int d = 0; d < kOwn; ++d) {
-    const int dx = s * kDirections[d][0], dy = s * kDirections[d][1];
-    // The fit (dx, dy) from each tile the pixels blend, re-expanded about the block's
-    // centre, or none: beyond the map, or a window beside the map's or the panel's edge,
-    // mostly empty, that fits its few pixels closely and extrapolates wildly.
-    // Per tile: the six coefficients, the window's mean square and 1 (for the blend's
-    // weights), eight so that the blend below vectorises.
-    alignas(32) double coef[kSpan + 1][kSpan + 1][8];
-    bool valid[kSpan + 1][kSpan + 1] = {};
-    for (int gy = 0; gy <= spans_y; ++gy)
-      for (int gx = 0; gx <= spans_x; ++gx) {
-        const int ty = std::clamp(row_tile[0] + gy, 0, tiles_y_ - 1),
-                  tx = std::clamp(col_tile[0] + gx, 0, tiles_x_ - 1);
-        const int ny = ty + dy, nx = tx + dx;
-        if (nx < 0 || ny < 0 || nx >= tiles_x_ || ny >= tiles_y_) continue;
-        const Quadratic& q = fits_[static_cast<std::size_t>(ny) * tiles_x_ + nx];
-        valid[gy][gx] =
-            q.ok && q.weight >= kMinWeight * fits_[static_cast<std::size_t>(ty) * tiles_x_ + tx].weight;
-        if (!valid[gy][gx]) continue;
-        // Its quadratic in x = X + a, y = Y + b, expanded in X, Y.
-        const double a = (uc - q.cu) * local_scale_, b = (vc - q.cv) * local_scale_;
-        const auto& c = q.c;
-        const double about[6] = {c(0) + c(1) * a + c(2) * b + c(3) * a * a + c(4) * a * b + c(5) * b * b,
-                                 c(1) + 2.0 * c(3) * a + c(4) * b,
-                                 c(2) + c(4) * a + 2.0 * c(5) * b,
-                                 c(3),
-                                 c(4),
-                                 c(5)};
-        std::copy(about, about + 6, coef[gy][gx]);
-        coef[gy][gx][6] = q.mean_square, coef[gy][gx][7] = 1.0;
+  float* f = fs.f.data() + d * area;
+  float* ms = fs.ms.data() + d * area;
+  std::uint8_t* have = fs.have.data() + d * area;
+  for (int y = 0; y < side; ++y) {
+    const int gy = fs.row_tile[y] - fs.row_tile[0];
+    for (int gx = 0; gx < fs.spans_x; ++gx) {
+      const int x0 = fs.run_start[gx], x1 = fs.run_start[gx + 1];
+      const std::size_t p0 = static_cast<std::size_t>(y * side + x0);
+      if (!cell_ok[gy][gx]) {
+        std::fill(have + p0, have + p0 + (x1 - x0), 0);
+        continue;
       }
-    bool cell_ok[kSpan][kSpan];
-    for (int gy = 0; gy < spans_y; ++gy)
-      for (int gx = 0; gx < spans_x; ++gx)
-        cell_ok[gy][gx] = valid[gy][gx] && valid[gy][gx + 1] && valid[gy + 1][gx] && valid[gy + 1][gx + 1];
-    float* f = fs.f.data() + d * area;
-    float* ms = fs.ms.data() + d * area;
-    std::uint8_t* have = fs.have.data() + d * area;
-    for (int y = 0; y < side; ++y) {
-      const int gy = row_tile[y] - row_tile[0];
-      for (int g = 0; g < spans_x; ++g) {
-        const int gx = g, x0 = run_start[g], x1 = run_start[g + 1];
-        const std::size_t p0 = static_cast<std::size_t>(y * side + x0);
-        if (!cell_ok[gy][gx]) {
-          std::fill(have + p0, have + p0 + (x1 - x0), 0);
-          continue;
-        }
-        std::copy(fs.weighed.data() + p0, fs.weighed.data() + p0 + (x1 - x0), have + p0);
-        // Along the run only the column fraction ax changes: fit n weighs
-        // (1 - ax or ax) * (1 - ay or ay) + 1e-9 = alpha + ax beta, and the blend is
-        // (A + ax B) / (wa + ax wb), as in blend().
-        // (A[6], B[6]: the same of the mean squares; A[7], B[7]: wa, wb.)
-        alignas(32) double A[8] = {}, B[8] = {};
-        for (int n = 0; n < 4; ++n) {
-          const double wy = n / 2 ? row_frac[y] : 1.0 - row_frac[y];
-          const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
-          add_scaled(A, B, coef[gy + n / 2][gx + n % 2], alpha, beta);
-        }
-        alignas(32) float Af[8], Bf[8];
-        for (int i = 0; i < 8; ++i) Af[i] = static_cast<float>(A[i]), Bf[i] = static_cast<float>(B[i]);
-        blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, fs.col_frac_f + x0, Af, Bf, Af[6],
-                  Bf[6], Af[7], Bf[7], f + p0, ms + p0);
+      std::copy(fs.weighed.data() + p0, fs.weighed.data() + p0 + (x1 - x0), have + p0);
+      // Along the run only the column fraction ax changes: fit n weighs
+      // (1 - ax or ax) * (1 - ay or ay) + 1e-9 = alpha + ax beta, and the blend is
+      // (A + ax B) / (wa + ax wb), as in blend().
+      // (A[6], B[6]: the same of the mean squares; A[7], B[7]: wa, wb.)
+      alignas(32) double A[8] = {}, B[8] = {};
+      for (int n = 0; n < 4; ++n) {
+        const double wy = n / 2 ? fs.row_frac[y] : 1.0 - fs.row_frac[y];
+        const double alpha = n % 2 ? 1e-9 : wy + 1e-9, beta = n % 2 ? wy : -wy;
+        add_scaled(A, B, fits.coef[gy + n / 2][gx + n % 2], alpha, beta);
       }
+      alignas(32) float Af[8], Bf[8];
+      for (int i = 0; i < 8; ++i) Af[i] = static_cast<float>(A[i]), Bf[i] = static_cast<float>(B[i]);
+      blend_run(x1 - x0, X + p0, Y + p0, XX + p0, XY + p0, YY + p0, fs.col_frac_f + x0, Af, Bf, Af[6], Bf[6],
+                Af[7], Bf[7], f + p0, ms + p0);
     }
   }
-  // The pixel's own blend, as blend() made it, and its four fits' windows' mean square
-  // blended alike (the block's pixels').
+}
+
+// The pixel's own candidate: its blend as blend() made it, and its four fits' windows'
+// mean square blended alike (the block's pixels').
+DENTMARK_HOT_LOOP void ReferenceSurface::fold_own_candidate(int bx, int by, FoldScratch& fs) const {
+  const int P = fs.block, e = kEvidence, side = fs.side;
+  const std::size_t area = static_cast<std::size_t>(side * side);
+  const int r0 = by * P - e, c0 = bx * P - e;
   float* f = fs.f.data() + kOwn * area;
   float* own_ms = fs.ms.data() + kOwn * area;
   std::uint8_t* have = fs.have.data() + kOwn * area;
@@ -465,8 +502,8 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
       f[p] = ref_[static_cast<std::size_t>(r) * map_.cols + c];
       have[p] = std::isfinite(f[p]);
       if (!have[p] || y < e || y >= e + P || x < e || x >= e + P) continue;
-      const int iy = row_tile[y], ix = col_tile[x];
-      const double ay = row_frac[y], ax = col_frac[x];
+      const int iy = fs.row_tile[y], ix = fs.col_tile[x];
+      const double ay = fs.row_frac[y], ax = fs.col_frac[x];
       double sum = 0.0, ws = 0.0;
       for (int n = 0; n < 4 && have[p]; ++n) {
         const Quadratic& q =
@@ -478,10 +515,6 @@ DENTMARK_HOT_LOOP void ReferenceSurface::fold_candidates(int bx, int by, FoldScr
       }
       if (have[p]) own_ms[p] = static_cast<float>(sum / ws);
     }
-  // What the evidence sums.
-  for (int d = 0; d < kCandidates; ++d)
-    evidence_terms(area, fs.z.data(), fs.w.data(), fs.f.data() + d * area, fs.have.data() + d * area,
-                   fs.resid.data() + d * area, fs.weight.data() + d * area);
 }
 
 // Per pixel of the block with a share: its clean candidates, weighted by how well they

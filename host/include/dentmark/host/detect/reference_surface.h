@@ -97,6 +97,11 @@ class ReferenceSurface {
   void fold_block_grid(int bx, int by, FoldScratch& fs) const;
   bool fold_block_shares(int bx, int by, const std::vector<float>& share, FoldScratch& fs) const;
   void fold_candidates(int bx, int by, FoldScratch& fs) const;
+  void fold_block_pixels(int bx, int by, FoldScratch& fs) const;
+  struct SideFits;
+  void side_fits(int dx, int dy, const FoldScratch& fs, SideFits& out) const;
+  void fold_side_candidate(int d, FoldScratch& fs) const;
+  void fold_own_candidate(int bx, int by, FoldScratch& fs) const;
   // Writes the block's pixels with a share to out (room for the block's); returns their count.
   int fold_evidence(int bx, int by, FoldScratch& fs, FoldPixel* out) const;
   bool crosses_fold(const FoldScratch& fs, std::size_t at, const bool* clean) const;
