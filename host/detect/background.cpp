@@ -125,16 +125,13 @@ double median_off(const std::vector<Cell>& cells, const std::vector<int>& member
 
 }  // namespace
 
-Background find_background(const LinearOctree& tree, const HeightMap& frame, const Box& box) {
-  Background out;
-  const std::size_t n = tree.leaves().size();
-  const int levels = std::clamp(static_cast<int>(std::lround(std::log2(kCell / tree.leaf_size()))), 1,
-                                std::max(1, tree.depth()));
-  const int shift = 3 * levels;
+namespace {
 
-  // The cells, from fixed chunks of leaves joined in order (a cell split between two
-  // chunks is summed back together): the same sums whatever the number of threads.
-  constexpr std::size_t kChunks = 64;
+// The cells, from fixed chunks of leaves joined in order (a cell split between two
+// chunks is summed back together): the same sums whatever the number of threads.
+constexpr std::size_t kChunks = 64;
+std::vector<Cell> joined_cells(const LinearOctree& tree, const HeightMap& frame, const Box& box, int shift) {
+  const std::size_t n = tree.leaves().size();
   std::vector<std::vector<Cell>> parts(kChunks);
 #pragma omp parallel for schedule(static)
   for (std::size_t p = 0; p < kChunks; ++p)
@@ -149,10 +146,19 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
         cells.push_back(c);
       }
     }
+  return cells;
+}
 
-  // Pieces: cells joined to the 26 around them. The pairs are found side by side; the
-  // pieces do not depend on the order they are joined in (each is numbered by its first
-  // cell, its cells listed in order).
+// A connected piece of cells: its sums and its cells, in order.
+struct Piece {
+  double area = 0.0, w = 0.0, view = 0.0;  // Σ a, Σ a w, Σ a / r²
+  std::vector<int> cells;
+};
+
+// Pieces: cells joined to the 26 around them. The pairs are found side by side; the
+// pieces do not depend on the order they are joined in (each is numbered by its first
+// cell, its cells listed in order).
+std::vector<Piece> pieces_of(const std::vector<Cell>& cells) {
   std::vector<std::vector<std::pair<int, int>>> pairs(kChunks);
 #pragma omp parallel for schedule(static)
   for (std::size_t p = 0; p < kChunks; ++p)
@@ -175,10 +181,6 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
   std::iota(parent.begin(), parent.end(), 0);
   for (const auto& part : pairs)
     for (const auto& [a, b] : part) parent[static_cast<std::size_t>(find(parent, a))] = find(parent, b);
-  struct Piece {
-    double area = 0.0, w = 0.0, view = 0.0;  // Σ a, Σ a w, Σ a / r²
-    std::vector<int> cells;
-  };
   std::vector<Piece> pieces;
   std::vector<int> piece_of(cells.size(), -1);
   for (std::size_t a = 0; a < cells.size(); ++a) {
@@ -191,16 +193,18 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
     p.area += cells[a].area, p.w += cells[a].w, p.view += cells[a].view;
     p.cells.push_back(static_cast<int>(a));
   }
-  if (std::count_if(pieces.begin(), pieces.end(), [](const Piece& p) { return p.area >= kMinArea; }) < 2)
-    return out;  // one surface (and specks): the common case
+  return pieces;
+}
 
-  // The panel: of the pieces the sensor sees at least a quarter as large as the largest,
-  // the one nearest to it (w points to it). Seen from the sensor (the frame's origin), a
-  // wall behind the panel is larger for its distance: it counts by its solid angle. A
-  // wall that fills the view round a small panel can still be over four times its size
-  // (a 0.5 x 0.4 m panel 5 cm before a wall 1.35 m square: 0.18 of it, and the wall was
-  // taken for the panel and the panel left out): a piece down to a tenth of the largest
-  // is a candidate too where it stands before the largest's shape by more than kOffShape.
+// The panel: of the pieces the sensor sees at least a quarter as large as the largest,
+// the one nearest to it (w points to it). Seen from the sensor (the frame's origin), a
+// wall behind the panel is larger for its distance: it counts by its solid angle. A
+// wall that fills the view round a small panel can still be over four times its size
+// (a 0.5 x 0.4 m panel 5 cm before a wall 1.35 m square: 0.18 of it, and the wall was
+// taken for the panel and the panel left out): a piece down to a tenth of the largest
+// is a candidate too where it stands before the largest's shape by more than kOffShape.
+const Piece& panel_piece(const std::vector<Piece>& pieces, const std::vector<Cell>& cells,
+                         const HeightMap& frame) {
   const bool from_sensor = frame.to_map(Eigen::Vector3d::Zero()).z() > 0.1;
   const auto size = [&](const Piece& p) { return from_sensor ? p.view : p.area; };
   const Piece* largest = &pieces[0];
@@ -215,10 +219,25 @@ Background find_background(const LinearOctree& tree, const HeightMap& frame, con
   const Piece* panel = nullptr;
   for (const Piece& p : pieces)
     if (candidate(p) && (!panel || p.w / p.area > panel->w / panel->area)) panel = &p;
-  const Shape shape(cells, panel->cells);
+  return *panel;
+}
 
+}  // namespace
+
+Background find_background(const LinearOctree& tree, const HeightMap& frame, const Box& box) {
+  Background out;
+  const std::size_t n = tree.leaves().size();
+  const int levels = std::clamp(static_cast<int>(std::lround(std::log2(kCell / tree.leaf_size()))), 1,
+                                std::max(1, tree.depth()));
+  const std::vector<Cell> cells = joined_cells(tree, frame, box, 3 * levels);
+  const std::vector<Piece> pieces = pieces_of(cells);
+  if (std::count_if(pieces.begin(), pieces.end(), [](const Piece& p) { return p.area >= kMinArea; }) < 2)
+    return out;  // one surface (and specks): the common case
+  const Piece& panel = panel_piece(pieces, cells, frame);
+  const Shape shape(cells, panel.cells);
+  // Every other piece of some size that stands off the panel's shape is background.
   for (const Piece& p : pieces) {
-    if (&p == panel || p.area < kMinArea || median_off(cells, p.cells, shape, true) <= kOffShape) continue;
+    if (&p == &panel || p.area < kMinArea || median_off(cells, p.cells, shape, true) <= kOffShape) continue;
     if (out.leaf.empty()) out.leaf.assign(n, 0);
     for (const int m : p.cells) {
       const Cell& c = cells[static_cast<std::size_t>(m)];
