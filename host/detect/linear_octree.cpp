@@ -94,6 +94,116 @@ NodeStats LinearOctree::stats(std::size_t begin, std::size_t end) const {
   return from_sums(area, sum_an);
 }
 
+namespace {
+
+// A node of the octree: its leaves [begin, end) and its level (0: the root).
+struct Node {
+  std::size_t begin, end;
+  int level;
+};
+
+// The sums of each node at level `top`, and the first leaf at or after each (the node's
+// leaves are [first[n], first[n + 1])).
+struct TopLevel {
+  int top = 0;
+  std::vector<double> area;
+  std::vector<Eigen::Vector3d> sum_an;
+  std::vector<std::size_t> first;
+};
+
+// One pass over the leaves. A node's leaves are one run: each thread sums whole nodes,
+// in leaf order (the same sums whatever the thread count). Part p starts at the first
+// node beginning in it.
+TopLevel top_level_sums(const OctreeLeaves& leaves, int depth, int top) {
+  TopLevel t;
+  t.top = top;
+  const int top_shift = 3 * (depth - top);
+  const std::size_t top_nodes = std::size_t{1} << (3 * top);
+  t.area.assign(top_nodes, 0.0);
+  t.sum_an.assign(top_nodes, Eigen::Vector3d::Zero());
+  t.first.assign(top_nodes + 1, leaves.size());
+  const auto top_node = [&](std::size_t l) { return static_cast<std::size_t>(leaves[l].key >> top_shift); };
+  const auto parts = static_cast<std::int64_t>(detail::thread_count());
+  const auto part_begin = [&](std::int64_t p) {
+    std::size_t l = leaves.size() * static_cast<std::size_t>(p) / static_cast<std::size_t>(parts);
+    while (l > 0 && l < leaves.size() && top_node(l) == top_node(l - 1)) ++l;
+    return l;
+  };
+#pragma omp parallel for schedule(static, 1)
+  for (std::int64_t p = 0; p < parts; ++p)
+    for (std::size_t l = part_begin(p), e = part_begin(p + 1); l < e; ++l) {
+      const std::size_t n = top_node(l);
+      t.area[n] += leaves[l].area;
+      t.sum_an[n] += leaves[l].sum_an.cast<double>();
+      t.first[n] = std::min(t.first[n], l);
+    }
+  for (std::size_t n = top_nodes; n-- > 0;) t.first[n] = std::min(t.first[n], t.first[n + 1]);
+  return t;
+}
+
+// Level by level from the root down to `top`, each node's sums from its descendants at
+// level `top`: the level-`top` nodes whose normals still vary over split_sigma.
+std::vector<Node> split_to_top(const TopLevel& t, double split_sigma) {
+  std::vector<Node> frontier;
+  std::vector<std::size_t> split{0};
+  for (int level = 0; level < t.top; ++level) {
+    const int below = 3 * (t.top - level - 1);  // a child's span of level-`top` nodes, in bits
+    std::vector<std::size_t> next;
+    for (const std::size_t node : split)
+      for (std::size_t c = 8 * node; c < 8 * node + 8; ++c) {
+        const std::size_t lo = c << below, hi = (c + 1) << below;
+        if (t.first[lo] == t.first[hi]) continue;  // no leaves
+        double a = 0.0;
+        Eigen::Vector3d s = Eigen::Vector3d::Zero();
+        for (std::size_t n = lo; n < hi; ++n) a += t.area[n], s += t.sum_an[n];
+        if (from_sums(a, s).sigma <= split_sigma) continue;
+        if (level + 1 < t.top)
+          next.push_back(c);
+        else
+          frontier.push_back({t.first[lo], t.first[hi], t.top});
+      }
+    split = std::move(next);
+  }
+  return frontier;
+}
+
+// Splits a node's subtree down to the leaves: one scan of a node's range gives its eight
+// children's ranges and sums. Appends the first leaf index of each feature leaf to out.
+void split_subtree(const OctreeLeaves& leaves, int depth, const Node& root, double split_sigma,
+                   double leaf_sigma, std::vector<Node>& stack, std::vector<std::uint32_t>& out) {
+  stack.push_back(root);
+  while (!stack.empty()) {
+    const Node node = stack.back();
+    stack.pop_back();
+    const int shift = 3 * (depth - node.level - 1);
+    std::size_t bounds[9];
+    double area[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    Eigen::Vector3d sum_an[8];
+    for (auto& a : sum_an) a.setZero();
+    bounds[0] = node.begin;
+    int child = 0;
+    for (std::size_t l = node.begin; l < node.end; ++l) {
+      const auto c = static_cast<int>((leaves[l].key >> shift) & 7);
+      while (child < c) bounds[++child] = l;
+      area[c] += leaves[l].area;
+      sum_an[c] += leaves[l].sum_an.cast<double>();
+    }
+    while (child < 8) bounds[++child] = node.end;
+    for (int c = 7; c >= 0; --c) {
+      if (bounds[c] == bounds[c + 1]) continue;
+      const double sigma = from_sums(area[c], sum_an[c]).sigma;
+      if (node.level + 1 == depth) {
+        // A leaf: one cell, one range of triangles.
+        if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(bounds[c]));
+      } else if (sigma > split_sigma) {
+        stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
+      }
+    }
+  }
+}
+
+}  // namespace
+
 std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, double leaf_sigma) const {
   // Top-down (eq. 3). A node's leaves are one range. The coarse levels, which every
   // panel's curvature splits, come from one pass of sums per node at level `top` (each
@@ -101,97 +211,22 @@ std::vector<std::uint32_t> LinearOctree::feature_leaves(double split_sigma, doub
   // gives its eight children's ranges and sums, so each level costs one pass over the
   // leaves still being split (no prefix arrays: 33 MB of fresh memory on a 9 M-triangle
   // scan).
-  struct Node {
-    std::size_t begin, end;
-    int level;
-  };
   const int top = std::min(depth_ - 1, 5);  // 8^5 nodes: 1 MB of sums
-  const int top_shift = 3 * (depth_ - top);
-  const std::size_t top_nodes = std::size_t{1} << (3 * top);
-  std::vector<double> top_area(top_nodes, 0.0);
-  std::vector<Eigen::Vector3d> top_sum_an(top_nodes, Eigen::Vector3d::Zero());
-  std::vector<std::size_t> first(top_nodes + 1, leaves_.size());  // first leaf at or after a node
-  const auto top_node = [&](std::size_t l) { return static_cast<std::size_t>(leaves_[l].key >> top_shift); };
-  // A node's leaves are one run: each thread sums whole nodes, in leaf order (the same
-  // sums whatever the thread count). Part p starts at the first node beginning in it.
-  const auto parts = static_cast<std::int64_t>(detail::thread_count());
-  const auto part_begin = [&](std::int64_t p) {
-    std::size_t l = leaves_.size() * static_cast<std::size_t>(p) / static_cast<std::size_t>(parts);
-    while (l > 0 && l < leaves_.size() && top_node(l) == top_node(l - 1)) ++l;
-    return l;
-  };
-#pragma omp parallel for schedule(static, 1)
-  for (std::int64_t p = 0; p < parts; ++p)
-    for (std::size_t l = part_begin(p), e = part_begin(p + 1); l < e; ++l) {
-      const std::size_t n = top_node(l);
-      top_area[n] += leaves_[l].area;
-      top_sum_an[n] += leaves_[l].sum_an.cast<double>();
-      first[n] = std::min(first[n], l);
-    }
-  for (std::size_t n = top_nodes; n-- > 0;) first[n] = std::min(first[n], first[n + 1]);
-  // Level by level from the root, each node's sums from its descendants at level `top`.
-  std::vector<Node> frontier;  // the level-`top` nodes to split
-  std::vector<std::size_t> split{0};
-  for (int level = 0; level < top; ++level) {
-    const int below = 3 * (top - level - 1);  // a child's span of level-`top` nodes, in bits
-    std::vector<std::size_t> next;
-    for (const std::size_t node : split)
-      for (std::size_t c = 8 * node; c < 8 * node + 8; ++c) {
-        const std::size_t lo = c << below, hi = (c + 1) << below;
-        if (first[lo] == first[hi]) continue;  // no leaves
-        double a = 0.0;
-        Eigen::Vector3d s = Eigen::Vector3d::Zero();
-        for (std::size_t n = lo; n < hi; ++n) a += top_area[n], s += top_sum_an[n];
-        if (from_sums(a, s).sigma <= split_sigma) continue;
-        if (level + 1 < top)
-          next.push_back(c);
-        else
-          frontier.push_back({first[lo], first[hi], top});
-      }
-    split = std::move(next);
-  }
+  std::vector<Node> frontier = split_to_top(top_level_sums(leaves_, depth_, top), split_sigma);
   if (top == 0) frontier.push_back({0, leaves_.size(), 0});
 
   // Below `top` each frontier node's subtree is split on its own (by whichever thread is
   // free); the leaves found are sorted at the end, so the order of work does not matter.
-  std::vector<std::vector<std::uint32_t>> found(static_cast<std::size_t>(parts));
+  const auto parts = static_cast<std::size_t>(detail::thread_count());
+  std::vector<std::vector<std::uint32_t>> found(parts);
   const int team = static_cast<int>(parts);  // at most one list per thread
 #pragma omp parallel num_threads(team)
   {
     std::vector<std::uint32_t>& out = found[static_cast<std::size_t>(detail::thread_index())];
     std::vector<Node> stack;
 #pragma omp for schedule(dynamic, 4)
-    for (std::size_t f = 0; f < frontier.size(); ++f) {
-      stack.push_back(frontier[f]);
-      while (!stack.empty()) {
-        const Node node = stack.back();
-        stack.pop_back();
-        const int shift = 3 * (depth_ - node.level - 1);
-        std::size_t bounds[9];
-        double area[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-        Eigen::Vector3d sum_an[8];
-        for (auto& a : sum_an) a.setZero();
-        bounds[0] = node.begin;
-        int child = 0;
-        for (std::size_t l = node.begin; l < node.end; ++l) {
-          const auto c = static_cast<int>((leaves_[l].key >> shift) & 7);
-          while (child < c) bounds[++child] = l;
-          area[c] += leaves_[l].area;
-          sum_an[c] += leaves_[l].sum_an.cast<double>();
-        }
-        while (child < 8) bounds[++child] = node.end;
-        for (int c = 7; c >= 0; --c) {
-          if (bounds[c] == bounds[c + 1]) continue;
-          const double sigma = from_sums(area[c], sum_an[c]).sigma;
-          if (node.level + 1 == depth_) {
-            // A leaf: one cell, one range of triangles.
-            if (sigma > leaf_sigma) out.push_back(static_cast<std::uint32_t>(bounds[c]));
-          } else if (sigma > split_sigma) {
-            stack.push_back({bounds[c], bounds[c + 1], node.level + 1});
-          }
-        }
-      }
-    }
+    for (std::size_t f = 0; f < frontier.size(); ++f)
+      split_subtree(leaves_, depth_, frontier[f], split_sigma, leaf_sigma, stack, out);
   }
   std::vector<std::uint32_t> out;
   for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
