@@ -560,17 +560,15 @@ class BucketRange {
 
 }  // namespace
 
-OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid, LeafBuildStats* stats) {
-  const std::size_t n = mesh.triangle_count();
-  // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side
-  // (Record::cell, 30 bits).
-  const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
-  const int low_bits = 3 * (grid.depth - bucket_levels);
-  const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
-  const int threads = thread_count();
-  std::vector<std::unique_ptr<ThreadRecords>> stores(static_cast<std::size_t>(threads));
+namespace {
 
-  // Pass 1: the threads file slices of the triangles, each taking the next one left.
+using Stores = std::vector<std::unique_ptr<ThreadRecords>>;
+
+// Pass 1: the threads file slices of the triangles, each taking the next one left.
+Stores file_triangles(const ingest::MeshView& mesh, const LeafGrid& grid, int low_bits, std::size_t buckets,
+                      int threads) {
+  const std::size_t n = mesh.triangle_count();
+  Stores stores(static_cast<std::size_t>(threads));
   const std::size_t slice = slice_size(n), slices = (n + slice - 1) / slice;
   std::atomic<std::size_t> next_slice{0};
 #pragma omp parallel num_threads(threads)
@@ -581,27 +579,44 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
     for (std::size_t s; (s = next_slice.fetch_add(1, std::memory_order_relaxed)) < slices;)
       filer.run_slice(mesh, static_cast<std::uint32_t>(s), s * slice, std::min(n, (s + 1) * slice));
   }
+  return stores;
+}
 
-  // Pass 2: buckets in key order, a share of them per thread by record count. A bucket has
-  // at least as many records as leaves, so a share's leaves fit in its buckets' part of a
-  // block sized for the records. Shares come in pairs: the first is written backwards,
-  // ending where the second's records begin, and the second forwards from there, so a
-  // pair's leaves are one run (with two threads, the whole window). The block beyond the
-  // window is never touched (address space only).
+// Where each bucket's records begin, all threads' together: start[k] .. start[k + 1].
+std::vector<std::uint64_t> bucket_starts(const Stores& stores, std::size_t buckets) {
   std::vector<std::uint64_t> start(buckets + 1, 0);
   for (std::size_t k = 0; k < buckets; ++k) {
     std::uint64_t c = 0;
     for (const auto& s : stores) c += s->sums.records(k) + s->singles.records(k);
     start[k + 1] = start[k] + c;
   }
+  return start;
+}
+
+// A run of leaves in the block.
+struct Run {
+  std::size_t begin = 0, size = 0;
+};
+
+// Pass 2: buckets in key order, a share of them per thread by record count. A bucket has
+// at least as many records as leaves, so a share's leaves fit in its buckets' part of a
+// block sized for the records. Shares come in pairs: the first is written backwards,
+// ending where the second's records begin, and the second forwards from there, so a
+// pair's leaves are one run (with two threads, the whole window). The block beyond the
+// window is never touched (address space only).
+//
+// A thread sums its own share from the end next to its partner's share; then it takes
+// its partner's from the far end, in the other direction, until the two meet (threads
+// run at uneven speeds on a VM: with fixed shares one waited up to 13 ms of ~40). Each
+// share's leaves: its owner's run (owned) and the run taken over from it (taken_over).
+struct SharedSums {
+  std::vector<Run> owned, taken_over;
+  std::size_t buckets_taken_over = 0;
+};
+SharedSums sum_buckets(const Stores& stores, const std::vector<std::uint64_t>& start, const LeafGrid& grid,
+                       int low_bits, int threads, OctreeLeaf* block) {
+  const std::size_t buckets = start.size() - 1;
   const std::uint64_t records = start[buckets];
-  if (stats) {
-    stats->record_bytes = 0;
-    for (const auto& s : stores)
-      stats->record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
-  }
-  OctreeLeaves leaves(records);
-  OctreeLeaf* const block = leaves.block();
   const auto nt = static_cast<std::size_t>(threads);
   std::vector<std::size_t> first(nt + 1, buckets);  // share s: buckets [first[s], first[s + 1])
   for (std::size_t s = 0; s < nt; ++s)
@@ -609,14 +624,7 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
                                         start.begin());
   std::vector<BucketRange> left(nt);  // each share's buckets not yet taken
   for (std::size_t s = 0; s < nt; ++s) left[s].reset(first[s], first[s + 1]);
-  // A thread sums its own share from the end next to its partner's share; then it takes
-  // its partner's from the far end, in the other direction, until the two meet (threads
-  // run at uneven speeds on a VM: with fixed shares one waited up to 13 ms of ~40). Each
-  // share's leaves: its owner's run and the run taken over from it.
-  struct Run {
-    std::size_t begin = 0, size = 0;
-  };
-  std::vector<Run> owned(nt), taken_over(nt);
+  SharedSums out{std::vector<Run>(nt), std::vector<Run>(nt), 0};
   std::atomic<std::size_t> buckets_taken_over{0};
 #pragma omp parallel num_threads(threads)
   {
@@ -638,16 +646,21 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
       }
       run = backwards ? Run{cursor, from - cursor} : Run{from, cursor - from};
     };
-    sum_share(t, false, owned[t]);
-    if ((t ^ 1) < nt) sum_share(t ^ 1, true, taken_over[t ^ 1]);
+    sum_share(t, false, out.owned[t]);
+    if ((t ^ 1) < nt) sum_share(t ^ 1, true, out.taken_over[t ^ 1]);
   }
-  stores.clear();
-  if (stats) stats->buckets_taken_over = buckets_taken_over.load();
+  out.buckets_taken_over = buckets_taken_over.load();
+  return out;
+}
+
+// The shares' runs made one, in share order: the window of the block that holds the leaves.
+Run join_runs(const SharedSums& sums, OctreeLeaf* block) {
+  const std::size_t nt = sums.owned.size();
   // A share's runs made one: the run taken over (the imbalance, small) moved next to its
   // owner's, below it in a first share and above it in a second.
   std::vector<Run> part(nt);
   for (std::size_t s = 0; s < nt; ++s) {
-    const Run &own = owned[s], &over = taken_over[s];
+    const Run &own = sums.owned[s], &over = sums.taken_over[s];
     const std::size_t to = s % 2 == 0 ? own.begin - over.size : own.begin + own.size;
     if (over.size > 0 && to != over.begin)
       std::memmove(static_cast<void*>(block + to), block + over.begin, over.size * sizeof(OctreeLeaf));
@@ -661,7 +674,31 @@ OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& gri
                    part[p].size * sizeof(OctreeLeaf));
     total += part[p].size;
   }
-  leaves.set_window(part[0].begin, total);
+  return {part[0].begin, total};
+}
+
+}  // namespace
+
+OctreeLeaves accumulate_leaves(const ingest::MeshView& mesh, const LeafGrid& grid, LeafBuildStats* stats) {
+  // At least depth - 10 bucket levels: a cell in its bucket has at most 10 bits a side
+  // (Record::cell, 30 bits).
+  const int bucket_levels = std::max(std::min(grid.depth, kBucketLevels), grid.depth - 10);
+  const int low_bits = 3 * (grid.depth - bucket_levels);
+  const std::size_t buckets = std::size_t{1} << (3 * bucket_levels);
+  const int threads = thread_count();
+  Stores stores = file_triangles(mesh, grid, low_bits, buckets, threads);
+  const std::vector<std::uint64_t> start = bucket_starts(stores, buckets);
+  if (stats) {
+    stats->record_bytes = 0;
+    for (const auto& s : stores)
+      stats->record_bytes += s->sums.records() * sizeof(Record) + s->singles.records() * sizeof(Single);
+  }
+  OctreeLeaves leaves(start[buckets]);
+  const SharedSums sums = sum_buckets(stores, start, grid, low_bits, threads, leaves.block());
+  stores.clear();
+  if (stats) stats->buckets_taken_over = sums.buckets_taken_over;
+  const Run window = join_runs(sums, leaves.block());
+  leaves.set_window(window.begin, window.size);
   return leaves;
 }
 
