@@ -576,15 +576,22 @@ Mesh read_ply(const std::string& path, std::string_view bytes) {
   return mesh;
 }
 
-std::optional<MeshView> ply_in_place(const std::string& path, std::string_view bytes, float scale) {
-  if (bytes.substr(0, 3) != "ply") return std::nullopt;
-  const PlyHeader header = parse_header(path, bytes);
-  if (header.encoding != Encoding::kLittle || std::endian::native != std::endian::little) return std::nullopt;
-  // Offsets of the blocks; anything but fixed-size elements and one trailing face list
-  // is left to read_ply.
-  std::size_t off = header.body, vertex_block = 0, vertex_stride = 0, xyz = 0, face_block = 0;
+namespace {
+
+// Where a binary little-endian PLY's blocks lie, when the file can be used in place:
+// fixed-size elements, float x, y, z side by side in the vertices, and one trailing face
+// list of uint8 counts and 32-bit indices.
+struct InPlaceLayout {
+  std::size_t vertex_block = 0, vertex_stride = 0, xyz = 0, face_block = 0;
   std::uint64_t vertex_count = 0, face_count = 0;
-  bool has_vertices = false, signed_index = false;
+  bool signed_index = false;
+};
+
+// The layout, or nullopt when anything is left to read_ply.
+std::optional<InPlaceLayout> in_place_layout(const PlyHeader& header, std::string_view bytes) {
+  InPlaceLayout l;
+  std::size_t off = header.body;
+  bool has_vertices = false;
   for (const Element& e : header.elements) {
     const bool last = &e == &header.elements.back();
     if (e.name == "face" && last && e.properties.size() == 1 && e.properties[0].is_list) {
@@ -593,7 +600,7 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
         return std::nullopt;
       if (off > bytes.size() || (bytes.size() - off) / 13 != e.count || (bytes.size() - off) % 13 != 0)
         return std::nullopt;
-      face_block = off, face_count = e.count, signed_index = p.type == Scalar::kI32;
+      l.face_block = off, l.face_count = e.count, l.signed_index = p.type == Scalar::kI32;
       off = bytes.size();
       continue;
     }
@@ -610,22 +617,22 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     if (stride != 0 && e.count > (bytes.size() - std::min(off, bytes.size())) / stride) return std::nullopt;
     if (e.name == "vertex") {
       if (ox == SIZE_MAX || oy != ox + 4 || oz != ox + 8) return std::nullopt;
-      has_vertices = true, vertex_block = off, vertex_stride = stride, xyz = ox, vertex_count = e.count;
+      has_vertices = true, l.vertex_block = off, l.vertex_stride = stride, l.xyz = ox,
+      l.vertex_count = e.count;
     }
     off += static_cast<std::size_t>(e.count) * stride;
   }
-  if (!has_vertices || face_count == 0 || vertex_count >= (1ull << 32) - 1) return std::nullopt;
+  if (!has_vertices || l.face_count == 0 || l.vertex_count >= (1ull << 32) - 1) return std::nullopt;
+  return l;
+}
 
-  // One parallel pass over each block: every face a triangle with indices in range, every
-  // coordinate finite. Anything else (polygons, bad indices, NaN) goes through read_ply,
-  // which fans, drops or reports it.
-  const char* const faces = bytes.data() + face_block;
-  const char* const vertices = bytes.data() + vertex_block + xyz;
-  const auto nf = static_cast<std::int64_t>(face_count), nv = static_cast<std::int64_t>(vertex_count);
-  // As triangle_record for every face, as one branch-free reduction: the largest index
-  // (as unsigned, a negative int32 is >= 2^31) and any count byte but 3.
+// Every face a triangle with indices in range: as triangle_record for every face, as one
+// branch-free reduction (the largest index, as unsigned: a negative int32 is >= 2^31; and
+// any count byte but 3).
+bool all_triangles_in_range(const char* faces, const InPlaceLayout& l) {
+  const auto nf = static_cast<std::int64_t>(l.face_count);
   const std::uint64_t limit =
-      signed_index ? std::min<std::uint64_t>(vertex_count, 0x80000000u) : vertex_count;
+      l.signed_index ? std::min<std::uint64_t>(l.vertex_count, 0x80000000u) : l.vertex_count;
   std::uint32_t largest = 0, not_three = 0;
 // (Chunks to whichever thread is free: on a shared machine one thread may run at half the
 // other's speed. The reductions do not depend on the order.)
@@ -637,14 +644,19 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     largest = std::max(largest, std::max(v[0], std::max(v[1], v[2])));
     not_three |= static_cast<std::uint8_t>(q[0]) ^ 3u;
   }
-  if (not_three != 0 || largest >= limit) return std::nullopt;
-  // Every coordinate finite, and on the way the bounding box (the octree needs it) and
-  // each block of vertices' box (VertexBlocks).
+  return not_three == 0 && largest < limit;
+}
+
+// Every coordinate finite, and on the way the bounding box (the octree needs it) and
+// each block of vertices' box (VertexBlocks), scaled as vertex() scales (scale > 0 keeps
+// min and max apart). False on a coordinate that is not finite.
+bool vertex_bounds(const char* vertices, const InPlaceLayout& l, float scale, VertexBlocks& boxes,
+                   Eigen::Vector3f& lo, Eigen::Vector3f& hi) {
+  const auto nv = static_cast<std::int64_t>(l.vertex_count);
   constexpr auto kBlock = static_cast<std::int64_t>(VertexBlocks::kSize);
   const std::int64_t blocks = (nv + kBlock - 1) / kBlock;
-  auto boxes = std::make_shared<VertexBlocks>();
-  boxes->lo.resize(static_cast<std::size_t>(blocks));
-  boxes->hi.resize(static_cast<std::size_t>(blocks));
+  boxes.lo.resize(static_cast<std::size_t>(blocks));
+  boxes.hi.resize(static_cast<std::size_t>(blocks));
   std::int64_t bad = 0;
   const float inf = std::numeric_limits<float>::infinity();
   float x0 = inf, y0 = inf, z0 = inf, x1 = -inf, y1 = -inf, z1 = -inf;
@@ -657,7 +669,7 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     const std::int64_t end = std::min(nv, (b + 1) * kBlock);
     for (std::int64_t i = b * kBlock; i < end; ++i) {
       float c[3];
-      std::memcpy(c, vertices + static_cast<std::size_t>(i) * vertex_stride, sizeof c);
+      std::memcpy(c, vertices + static_cast<std::size_t>(i) * l.vertex_stride, sizeof c);
       nonfinite += !(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]));
       lx = std::min(lx, c[0]), ly = std::min(ly, c[1]), lz = std::min(lz, c[2]);
       hx = std::max(hx, c[0]), hy = std::max(hy, c[1]), hz = std::max(hz, c[2]);
@@ -665,14 +677,32 @@ std::optional<MeshView> ply_in_place(const std::string& path, std::string_view b
     bad += nonfinite;
     x0 = std::min(x0, lx), y0 = std::min(y0, ly), z0 = std::min(z0, lz);
     x1 = std::max(x1, hx), y1 = std::max(y1, hy), z1 = std::max(z1, hz);
-    // Scaled as vertex() scales (scale > 0 keeps min and max apart).
-    boxes->lo[static_cast<std::size_t>(b)] = Eigen::Vector3f(lx, ly, lz) * scale;
-    boxes->hi[static_cast<std::size_t>(b)] = Eigen::Vector3f(hx, hy, hz) * scale;
+    boxes.lo[static_cast<std::size_t>(b)] = Eigen::Vector3f(lx, ly, lz) * scale;
+    boxes.hi[static_cast<std::size_t>(b)] = Eigen::Vector3f(hx, hy, hz) * scale;
   }
-  if (bad != 0) return std::nullopt;
-  MeshView view(reinterpret_cast<const std::byte*>(vertices), vertex_count, vertex_stride,
-                reinterpret_cast<const std::byte*>(faces + 1), face_count, 13, scale);
-  view.set_bounds(Eigen::Vector3f(x0, y0, z0) * scale, Eigen::Vector3f(x1, y1, z1) * scale);
+  lo = Eigen::Vector3f(x0, y0, z0) * scale, hi = Eigen::Vector3f(x1, y1, z1) * scale;
+  return bad == 0;
+}
+
+}  // namespace
+
+std::optional<MeshView> ply_in_place(const std::string& path, std::string_view bytes, float scale) {
+  if (bytes.substr(0, 3) != "ply") return std::nullopt;
+  const PlyHeader header = parse_header(path, bytes);
+  if (header.encoding != Encoding::kLittle || std::endian::native != std::endian::little) return std::nullopt;
+  const std::optional<InPlaceLayout> layout = in_place_layout(header, bytes);
+  if (!layout) return std::nullopt;
+  // One parallel pass over each block. Anything else (polygons, bad indices, NaN) goes
+  // through read_ply, which fans, drops or reports it.
+  const char* const faces = bytes.data() + layout->face_block;
+  const char* const vertices = bytes.data() + layout->vertex_block + layout->xyz;
+  if (!all_triangles_in_range(faces, *layout)) return std::nullopt;
+  auto boxes = std::make_shared<VertexBlocks>();
+  Eigen::Vector3f lo, hi;
+  if (!vertex_bounds(vertices, *layout, scale, *boxes, lo, hi)) return std::nullopt;
+  MeshView view(reinterpret_cast<const std::byte*>(vertices), layout->vertex_count, layout->vertex_stride,
+                reinterpret_cast<const std::byte*>(faces + 1), layout->face_count, 13, scale);
+  view.set_bounds(lo, hi);
   view.set_vertex_blocks(std::move(boxes));
   return view;
 }
