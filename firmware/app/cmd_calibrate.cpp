@@ -452,8 +452,10 @@ int run_calibrate_scanner(const CalibrateScannerCliOptions& o) {
           std::printf("capture %s: not a sphere: %s\n", c.name.c_str(), why.c_str());
       std::printf("captures: %d, common points (sphere centres): %d; %.1f s\n", f.captures, f.points,
                   seconds);
-      std::printf("rigid fit RMS point transfer: %.3f mm, worst point %.3f mm\n", f.rms_m * 1e3,
-                  f.max_m * 1e3);
+      if (f.corners_rms_px >= 0.0)
+        std::printf("board corners through T_camL_sls (all captures, both cameras): RMS %.3f px\n",
+                    f.corners_rms_px);
+      std::printf("RMS point transfer: %.3f mm, worst point %.3f mm\n", f.rms_m * 1e3, f.max_m * 1e3);
       if (f.holdout_rms_m >= 0.0)
         std::printf("hold-out point transfer (leave one point out): RMS %.3f mm, worst point %.3f mm\n",
                     f.holdout_rms_m * 1e3, f.holdout_max_m * 1e3);

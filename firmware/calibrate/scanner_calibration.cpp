@@ -108,6 +108,7 @@ ScannerCapture measure_scanner_capture(const ScannerTarget& target, const track:
   const BoardPose pose =
       refine_board_pose(target.board, stereo, m.pixels_left, m.pixels_right, m.T_camL_target);
   c.board_rms_px = pose.rms_px;
+  c.board_view = {m.pixels_left, m.pixels_right, match.T_sls_board};
   for (std::size_t k = 0; k < match.ids.size(); ++k) {
     const int id = match.ids[k];
     c.ids.push_back(id);
@@ -127,7 +128,7 @@ ScannerCalibrationRun calibrate_scanner_captures(const fs::path& dir, const Scan
     run.captures.push_back(measure_scanner_capture(target, stereo, f, scale));
     inputs.insert(inputs.end(), {f.scan, f.left, f.right});
   }
-  run.fit = fit_scanner(run.captures);
+  run.fit = fit_scanner(run.captures, target.board, stereo);
   run.inputs_sha256 =
       inputs_sha256("scanner target " + target.board.describe() + " radius " +
                         std::to_string(target.sphere_radius_m) + " scale " + std::to_string(scale) + '\0',
@@ -141,7 +142,7 @@ std::string scanner_calibration_yaml(const ScannerCalibrationRun& run) {
   fs << "dentmark_scanner_calibration" << 1;
   fs << "T_camL_sls" << matrix_of(f.T_camL_sls);
   fs << "rms" << f.rms_m << "max_m" << f.max_m << "holdout_rms_m" << f.holdout_rms_m << "holdout_max_m"
-     << f.holdout_max_m;
+     << f.holdout_max_m << "corners_rms_px" << f.corners_rms_px;
   fs << "captures" << f.captures << "points" << f.points;
   fs << "capture"
      << "[";
@@ -172,6 +173,7 @@ std::string scanner_calibration_json(const ScannerCalibrationRun& run) {
   j["max_m"] = f.max_m;
   j["holdout_rms_m"] = f.holdout_rms_m;
   j["holdout_max_m"] = f.holdout_max_m;
+  j["corners_rms_px"] = f.corners_rms_px;
   j["captures"] = f.captures;
   j["points"] = f.points;
   nlohmann::json cs = nlohmann::json::array();

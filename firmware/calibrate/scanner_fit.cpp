@@ -82,7 +82,8 @@ SphereMatch match_spheres(const ScannerTarget& target, const std::vector<ScanSph
   return best;
 }
 
-ScannerFit fit_scanner(const std::vector<ScannerCapture>& captures) {
+ScannerFit fit_scanner(const std::vector<ScannerCapture>& captures, const TargetSpec& board,
+                       const track::StereoCalibration& stereo) {
   std::vector<Eigen::Vector3d> sls, camL;
   for (const ScannerCapture& c : captures) {
     sls.insert(sls.end(), c.points_sls.begin(), c.points_sls.end());
@@ -95,11 +96,20 @@ ScannerFit fit_scanner(const std::vector<ScannerCapture>& captures) {
   out.captures = static_cast<int>(captures.size());
   out.points = static_cast<int>(sls.size());
   try {
-    out.T_camL_sls = fit_rigid(sls, camL).T_to_from;
+    out.T_camL_sls_points = fit_rigid(sls, camL).T_to_from;
   } catch (const GeometryError& e) {
     throw CalibrateError(
         std::string("scanner calibration: the common points do not fix a rigid transform (") + e.what() +
         ")");
+  }
+  out.T_camL_sls = out.T_camL_sls_points;
+  std::vector<BoardView> views;
+  for (const ScannerCapture& c : captures)
+    if (!c.board_view.pixels_left.empty()) views.push_back(c.board_view);
+  if (views.size() == captures.size()) {
+    const ChainedPose refined = refine_chained_pose(board, stereo, views, out.T_camL_sls_points);
+    out.T_camL_sls = refined.T_camL_x;
+    out.corners_rms_px = refined.rms_px;
   }
   double ss = 0.0;
   for (std::size_t i = 0; i < sls.size(); ++i) {

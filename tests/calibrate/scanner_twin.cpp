@@ -8,12 +8,11 @@
 //       door's scan position A (2.8 m from camL), tilted by up to 0.25 rad
 //       (simulation::render_scanner_captures: the images from sim's ChessboardRenderer,
 //       the scans from sim's sphere_target_scan).
-//   scanner_twin check DIR SCANNER_YAML MAX_M
+//   scanner_twin check DIR SCANNER_YAML MAX_TRANSLATION_M MAX_GRID_RMS_M MAX_ROTATION_RAD
 //       the file's T_camL_sls against the truth: the translation error (the sensor's
 //       origin, 0.9 m in front of the door), the rotation error, and the point transfer
 //       error of a 1.2 × 0.8 m grid of points where the scanner sees the door (about
-//       2.8 m from camL). Exits 0 when the translation error and the grid's RMS are both
-//       ≤ MAX_M, else 1.
+//       2.8 m from camL). Exits 0 when each is within its bound, else 1 naming it.
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdio>
@@ -62,7 +61,7 @@ int scene(const fs::path& dir, int captures, std::uint64_t seed) {
   return 0;
 }
 
-int check(const fs::path& dir, const fs::path& scanner_yaml, double max_m) {
+int check(const fs::path& dir, const fs::path& scanner_yaml, double max_t, double max_grid, double max_r) {
   cv::FileStorage in((dir / "truth.yaml").string(), cv::FileStorage::READ);
   cv::Mat m;
   in["T_camL_sls"] >> m;
@@ -87,7 +86,12 @@ int check(const fs::path& dir, const fs::path& scanner_yaml, double max_m) {
       "the "
       "door's %d-point 1.2 x 0.8 m grid at %.2f m from camL: RMS %.3f mm, max %.3f mm\n",
       dt * 1e3, dr * 1e3, n, (truth * Eigen::Vector3d(0, 0, 0.9)).norm(), rms * 1e3, worst * 1e3);
-  return dt <= max_m && rms <= max_m ? 0 : 1;
+  int bad = 0;
+  if (!(dt <= max_t)) std::printf("translation %.3f mm > %.3f mm\n", dt * 1e3, max_t * 1e3), bad = 1;
+  if (!(rms <= max_grid))
+    std::printf("door grid RMS %.3f mm > %.3f mm\n", rms * 1e3, max_grid * 1e3), bad = 1;
+  if (!(dr <= max_r)) std::printf("rotation %.3f mrad > %.3f mrad\n", dr * 1e3, max_r * 1e3), bad = 1;
+  return bad;
 }
 
 }  // namespace
@@ -96,11 +100,14 @@ int main(int argc, char** argv) {
   try {
     const std::string cmd = argc > 1 ? argv[1] : "";
     if (cmd == "scene" && argc == 5) return scene(argv[2], std::stoi(argv[3]), std::stoull(argv[4]));
-    if (cmd == "check" && argc == 5) return check(argv[2], argv[3], std::stod(argv[4]));
+    if (cmd == "check" && argc == 7)
+      return check(argv[2], argv[3], std::stod(argv[4]), std::stod(argv[5]), std::stod(argv[6]));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "scanner_twin: %s\n", e.what());
     return 2;
   }
-  std::fprintf(stderr, "usage: scanner_twin scene DIR CAPTURES SEED | check DIR SCANNER_YAML MAX_M\n");
+  std::fprintf(
+      stderr,
+      "usage: scanner_twin scene DIR CAPTURES SEED | check DIR SCANNER_YAML MAX_T_M MAX_GRID_M MAX_RAD\n");
   return 2;
 }
