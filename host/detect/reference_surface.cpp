@@ -255,28 +255,21 @@ ReferenceSurface::Quadratic ReferenceSurface::solve(const Moments& win, int tx, 
   return q;
 }
 
-DENTMARK_HOT_LOOP void ReferenceSurface::blend(int ty, int tx0, int tx1) {
-  const int T = tile_;
-  const int c1 = std::min(map_.cols, tx1 * T), r1 = std::min(map_.rows, (ty + 1) * T);
-  if (c1 <= tx0 * T || r1 <= ty * T) return;
-  const float* u = map_.u.data();
-  const float* v = map_.v.data();
-  const float* weight = map_.weight.data();
-  // A pixel's four nearest fits are those at tiles (iy + dy, ix + dx), dy, dx in {0, 1}.
-  const auto lower = [T](int p) { return static_cast<int>(std::floor((p + 0.5) / T - 0.5)); };
-  // Each fit's quadratic re-expanded about the first one's centre, once per (iy, ix)
-  // this span meets (not once per pixel row).
-  struct Corner {
-    double about[4][6];
-    bool ok[4];
-    const Quadratic* q0;
-  };
-  const int iy0 = lower(ty * T), ix0 = lower(tx0 * T);
-  const int ny = lower(r1 - 1) - iy0 + 1, nx = lower(c1 - 1) - ix0 + 1;
-  std::vector<Corner> corners(static_cast<std::size_t>(ny * nx));
+// The four fits a pixel blends, at tiles (iy + n / 2, ix + n % 2), each re-expanded
+// about the first one's centre: once per (iy, ix) a span of blend() meets (not once per
+// pixel row).
+struct ReferenceSurface::BlendCorner {
+  double about[4][6];
+  bool ok[4];
+  const Quadratic* q0;
+};
+
+std::vector<ReferenceSurface::BlendCorner> ReferenceSurface::blend_corners(int iy0, int ix0, int ny,
+                                                                           int nx) const {
+  std::vector<BlendCorner> corners(static_cast<std::size_t>(ny * nx));
   for (int jy = 0; jy < ny; ++jy)
     for (int jx = 0; jx < nx; ++jx) {
-      Corner& k = corners[static_cast<std::size_t>(jy * nx + jx)];
+      BlendCorner& k = corners[static_cast<std::size_t>(jy * nx + jx)];
       for (int n = 0; n < 4; ++n) {
         const int dy = n / 2, dx = n % 2;
         const Quadratic& q =
@@ -297,6 +290,21 @@ DENTMARK_HOT_LOOP void ReferenceSurface::blend(int ty, int tx0, int tx1) {
         std::copy(about, about + 6, k.about[n]);
       }
     }
+  return corners;
+}
+
+DENTMARK_HOT_LOOP void ReferenceSurface::blend(int ty, int tx0, int tx1) {
+  const int T = tile_;
+  const int c1 = std::min(map_.cols, tx1 * T), r1 = std::min(map_.rows, (ty + 1) * T);
+  if (c1 <= tx0 * T || r1 <= ty * T) return;
+  const float* u = map_.u.data();
+  const float* v = map_.v.data();
+  const float* weight = map_.weight.data();
+  // A pixel's four nearest fits are those at tiles (iy + dy, ix + dx), dy, dx in {0, 1}.
+  const auto lower = [T](int p) { return static_cast<int>(std::floor((p + 0.5) / T - 0.5)); };
+  const int iy0 = lower(ty * T), ix0 = lower(tx0 * T);
+  const int ny = lower(r1 - 1) - iy0 + 1, nx = lower(c1 - 1) - ix0 + 1;
+  const std::vector<BlendCorner> corners = blend_corners(iy0, ix0, ny, nx);
   for (int r = ty * T; r < r1; ++r) {
     const double fy = (r + 0.5) / T - 0.5;
     const int iy = static_cast<int>(std::floor(fy));
@@ -312,7 +320,7 @@ DENTMARK_HOT_LOOP void ReferenceSurface::blend(int ty, int tx0, int tx1) {
       // fit n weighs (1 - ax or ax) * (1 - ay or ay) + 1e-9, or 0 if it failed. Along
       // the run only ax changes, so the blend is (A + ax B) / (wa + ax wb), with A and B
       // quadratics combined from the four, all about the first fit's centre.
-      const Corner& k = corners[static_cast<std::size_t>((iy - iy0) * nx + (ix - ix0))];
+      const BlendCorner& k = corners[static_cast<std::size_t>((iy - iy0) * nx + (ix - ix0))];
       double A[6] = {0, 0, 0, 0, 0, 0}, B[6] = {0, 0, 0, 0, 0, 0}, wa = 0.0, wb = 0.0;
       for (int n = 0; n < 4; ++n) {
         if (!k.ok[n]) continue;

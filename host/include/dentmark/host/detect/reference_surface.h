@@ -79,6 +79,8 @@ class ReferenceSurface {
   // weighted mean squared residual.
   Quadratic solve(const Moments& win, int tx, int ty, double& mean_square) const;
   void blend(int ty, int tx0, int tx1);  // the pixels of tiles [tx0, tx1) of tile row ty
+  struct BlendCorner;
+  std::vector<BlendCorner> blend_corners(int iy0, int ix0, int ny, int nx) const;
   // Beside a sharp fold (a character line) every window across it leaves a band as wide
   // as itself; there the pixels take the fits of windows beside them (fold_pass.cpp).
   static constexpr int kCandidates = 9;  // the eight side windows and the pixel's own blend
