@@ -246,6 +246,71 @@ LiveRun run_live(const CalibrateRobotCliOptions& o) {
   return run;
 }
 
+// What the robot calibration's result says, for the file, from a live run.
+calibrate::RobotCalibrationRun robot_run_from_live(const LiveRun& lr, const CalibrateRobotCliOptions& o) {
+  calibrate::RobotCalibrationRun run;
+  run.fit = lr.fit;
+  run.target = lr.target;
+  run.poses = static_cast<int>(lr.samples.samples.size());
+  run.points_per_pose = static_cast<int>(lr.samples.target_points_tool.size());
+  run.inputs_sha256 =
+      o.samples_out.empty() ? std::string() : calibrate::inputs_sha256("robot samples\0", {o.samples_out});
+  return run;
+}
+
+// ... and from recorded samples.
+calibrate::RobotCalibrationRun robot_run_from_file(const std::string& samples_file) {
+  const calibrate::RobotSamples samples = calibrate::read_robot_samples(samples_file);
+  calibrate::RobotCalibrationRun run;
+  run.fit = calibrate::fit_robot(samples);
+  run.poses = static_cast<int>(samples.samples.size());
+  run.points_per_pose = static_cast<int>(samples.target_points_tool.size());
+  run.inputs_sha256 = calibrate::inputs_sha256("robot samples\0", {samples_file});
+  return run;
+}
+
+// Why the fit is not good enough to write, or "" when it is.
+std::string robot_fit_problem(const calibrate::RobotFit& f) {
+  const calibrate::RobotResidualLimits lim;
+  char bad[200] = "";
+  residuals_over(f.rms_m, lim.max_rms_m, f.holdout_rms_m, lim.max_holdout_m, bad, sizeof bad);
+  if (!*bad && f.handeye_translation_diff_m > lim.max_handeye_translation_m)
+    std::snprintf(bad, sizeof bad, "hand-eye cross-check differs by %.3f mm > %.3f mm",
+                  f.handeye_translation_diff_m * 1e3, lim.max_handeye_translation_m * 1e3);
+  return bad;
+}
+
+// The result on stdout, as JSON or a table; 'written' is the file written, or "".
+void print_robot_result(const calibrate::RobotCalibrationRun& run, const std::optional<LiveRun>& lr,
+                        const std::string& written, bool json) {
+  const calibrate::RobotFit& f = run.fit;
+  if (json) {
+    nlohmann::json j = nlohmann::json::parse(calibrate::robot_calibration_json(run));
+    if (lr) {
+      j["poses_planned"] = lr->planned;
+      j["robot_seconds"] = lr->robot_seconds;
+      j["wall_seconds"] = lr->wall_seconds;
+      nlohmann::json skipped = nlohmann::json::array();
+      for (std::size_t i = 0; i < lr->poses.size(); ++i)
+        if (!lr->poses[i].used) skipped.push_back({{"pose", i + 1}, {"why", lr->poses[i].why}});
+      j["poses_skipped"] = skipped;
+    }
+    j["written"] = written;
+    std::cout << j.dump(2) << std::endl;
+    return;
+  }
+  if (lr)
+    std::printf("poses planned: %d, target measured at %d; robot time %.1f s, wall time %.1f s\n",
+                lr->planned, run.poses, lr->robot_seconds, lr->wall_seconds);
+  std::printf("poses: %d, target points per pose: %d\n", run.poses, run.points_per_pose);
+  std::printf("rigid fit RMS: %.3f mm\n", f.rms_m * 1e3);
+  std::printf("hold-out point transfer (leave one pose out): RMS %.3f mm, worst pose %.3f mm\n",
+              f.holdout_rms_m * 1e3, f.holdout_max_pose_m * 1e3);
+  std::printf("hand-eye cross-check (calibrateRobotWorldHandEye): %.3f mm, %.3f mrad apart\n",
+              f.handeye_translation_diff_m * 1e3, f.handeye_rotation_diff_rad * 1e3);
+  if (!written.empty()) std::printf("written: %s\n", written.c_str());
+}
+
 int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
   try {
     const bool live = o.from_file.empty();
@@ -259,7 +324,6 @@ int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
                                 ? std::string("robot.yaml")
                                 : (std::filesystem::path(o.calibration) / "robot.yaml").string();
     require_out_folder(out);
-    calibrate::RobotCalibrationRun run;
     std::optional<LiveRun> lr;
     if (live) {
       try {
@@ -272,60 +336,18 @@ int run_calibrate_robot(const CalibrateRobotCliOptions& o) {
         return kDeviceFailure;
       }
       if (!o.samples_out.empty()) calibrate::write_robot_samples(o.samples_out, lr->samples);
-      run.fit = lr->fit;
-      run.target = lr->target;
-      run.poses = static_cast<int>(lr->samples.samples.size());
-      run.points_per_pose = static_cast<int>(lr->samples.target_points_tool.size());
-      run.inputs_sha256 = o.samples_out.empty()
-                              ? std::string()
-                              : calibrate::inputs_sha256("robot samples\0", {o.samples_out});
-    } else {
-      const calibrate::RobotSamples samples = calibrate::read_robot_samples(o.from_file);
-      run.fit = calibrate::fit_robot(samples);
-      run.poses = static_cast<int>(samples.samples.size());
-      run.points_per_pose = static_cast<int>(samples.target_points_tool.size());
-      run.inputs_sha256 = calibrate::inputs_sha256("robot samples\0", {o.from_file});
     }
+    calibrate::RobotCalibrationRun run = lr ? robot_run_from_live(*lr, o) : robot_run_from_file(o.from_file);
     run.created_utc = calibrate::utc_now_iso8601();
     run.tool_version = kVersion;
-    const calibrate::RobotFit& f = run.fit;
-    const calibrate::RobotResidualLimits lim;
-    char bad[200] = "";
-    residuals_over(f.rms_m, lim.max_rms_m, f.holdout_rms_m, lim.max_holdout_m, bad, sizeof bad);
-    if (!*bad && f.handeye_translation_diff_m > lim.max_handeye_translation_m)
-      std::snprintf(bad, sizeof bad, "hand-eye cross-check differs by %.3f mm > %.3f mm",
-                    f.handeye_translation_diff_m * 1e3, lim.max_handeye_translation_m * 1e3);
-    if (!*bad) {
+    const std::string bad = robot_fit_problem(run.fit);
+    if (bad.empty()) {
       calibrate::write_robot_calibration(out, run);
       clear_marker(o.calibration);
     }
-    if (o.json) {
-      nlohmann::json j = nlohmann::json::parse(calibrate::robot_calibration_json(run));
-      if (lr) {
-        j["poses_planned"] = lr->planned;
-        j["robot_seconds"] = lr->robot_seconds;
-        j["wall_seconds"] = lr->wall_seconds;
-        nlohmann::json skipped = nlohmann::json::array();
-        for (std::size_t i = 0; i < lr->poses.size(); ++i)
-          if (!lr->poses[i].used) skipped.push_back({{"pose", i + 1}, {"why", lr->poses[i].why}});
-        j["poses_skipped"] = skipped;
-      }
-      j["written"] = *bad ? std::string() : out;
-      std::cout << j.dump(2) << std::endl;
-    } else {
-      if (lr)
-        std::printf("poses planned: %d, target measured at %d; robot time %.1f s, wall time %.1f s\n",
-                    lr->planned, run.poses, lr->robot_seconds, lr->wall_seconds);
-      std::printf("poses: %d, target points per pose: %d\n", run.poses, run.points_per_pose);
-      std::printf("rigid fit RMS: %.3f mm\n", f.rms_m * 1e3);
-      std::printf("hold-out point transfer (leave one pose out): RMS %.3f mm, worst pose %.3f mm\n",
-                  f.holdout_rms_m * 1e3, f.holdout_max_pose_m * 1e3);
-      std::printf("hand-eye cross-check (calibrateRobotWorldHandEye): %.3f mm, %.3f mrad apart\n",
-                  f.handeye_translation_diff_m * 1e3, f.handeye_rotation_diff_rad * 1e3);
-      if (!*bad) std::printf("written: %s\n", out.c_str());
-    }
-    if (*bad) {
-      log::error(std::string("calibrate robot: ") + bad + "; " + out +
+    print_robot_result(run, lr, bad.empty() ? out : std::string(), o.json);
+    if (!bad.empty()) {
+      log::error("calibrate robot: " + bad + "; " + out +
                  " not written: " + (live ? "run it again (docs/calibration.md)" : "re-record the samples"));
       return 3;
     }
