@@ -8,11 +8,20 @@
 namespace dentmark::simulation {
 namespace {
 
-// A calibration's error: a small random rigid motion (σ per axis).
-Transform calibration_error(std::mt19937_64& rng, double sigma_t, double sigma_r) {
+// A calibration's error: a small random rigid motion (σ per axis), turning about the
+// point where its target was seen (the working volume's centre, in the frame the error
+// acts in). A calibration is fitted to observations there, so that is where it is best
+// known; its rotation error moves points in proportion to their distance from there,
+// not from the frame's origin (camL sits 2.8 m from the door).
+Transform calibration_error(std::mt19937_64& rng, double sigma_t, double sigma_r,
+                            const Eigen::Vector3d& pivot) {
   std::normal_distribution<double> n(0.0, 1.0);
-  return make_transform_rotvec(sigma_r * Eigen::Vector3d(n(rng), n(rng), n(rng)),
-                               sigma_t * Eigen::Vector3d(n(rng), n(rng), n(rng)));
+  const Transform about_origin = make_transform_rotvec(sigma_r * Eigen::Vector3d(n(rng), n(rng), n(rng)),
+                                                       sigma_t * Eigen::Vector3d(n(rng), n(rng), n(rng)));
+  Transform to_pivot = Transform::Identity(), from_pivot = Transform::Identity();
+  to_pivot.translation() = pivot;
+  from_pivot.translation() = -pivot;
+  return to_pivot * about_origin * from_pivot;
 }
 
 }  // namespace
@@ -59,10 +68,12 @@ Workcell make_workcell(const ScenarioOptions& o, const Transform& T_sls_scanpane
 
   std::mt19937_64 rng(o.seed * 7919 + static_cast<std::uint64_t>(o.position) * 31 +
                       static_cast<std::uint64_t>(std::llround(o.yaw * 1e6)));
-  cell.T_base_camL_est =
-      calibration_error(rng, o.calibration_translation, o.calibration_rotation) * cell.T_base_camL_true;
-  cell.T_camL_sls_est =
-      calibration_error(rng, o.calibration_translation, o.calibration_rotation) * cell.T_camL_sls_true;
+  // Both calibrations' targets stood at the door's middle position (B).
+  cell.T_base_camL_est = calibration_error(rng, o.calibration_translation, o.calibration_rotation,
+                                           cell.T_base_camL_true * centre_B) *
+                         cell.T_base_camL_true;
+  cell.T_camL_sls_est = calibration_error(rng, o.calibration_translation, o.calibration_rotation, centre_B) *
+                        cell.T_camL_sls_true;
   return cell;
 }
 

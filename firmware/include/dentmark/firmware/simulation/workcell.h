@@ -27,7 +27,7 @@ struct ScenarioOptions {
   double fps = 10.0;
   double vibration = 1e-4;                // m
   double calibration_translation = 3e-4;  // m, 1σ per axis of each calibration's error
-  double calibration_rotation = 2e-4;     // rad, 1σ per axis
+  double calibration_rotation = 2e-4;     // rad, 1σ per axis, about the working volume's centre
   double robot_accuracy = 3e-4;           // m, robot's absolute accuracy error (fixed offset)
   double robot_repeatability = 5e-5;      // m, 1σ per move
   std::uint64_t seed = 1;
