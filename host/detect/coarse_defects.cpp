@@ -42,7 +42,8 @@ std::vector<VertexGroup> coherent_groups(const ingest::MeshView& mesh, const std
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
     const auto tri = mesh.triangle(t);
     for (int e = 0; e < 3; ++e) {
-      const std::uint32_t a = tri[static_cast<std::size_t>(e)], b = tri[static_cast<std::size_t>((e + 1) % 3)];
+      const std::uint32_t a = tri[static_cast<std::size_t>(e)],
+                          b = tri[static_cast<std::size_t>((e + 1) % 3)];
       if (side[a] != 0 && side[a] == side[b]) sets.join(a, b);
     }
   }
@@ -67,12 +68,46 @@ std::vector<VertexGroup> coherent_groups(const ingest::MeshView& mesh, const std
   }
   std::vector<VertexGroup> kept;
   for (std::size_t g = 0; g < groups.size(); ++g)
-    if (seeded[g] && !touches_excluded[g] && groups[g].vertices.size() >= 2) kept.push_back(std::move(groups[g]));
+    if (seeded[g] && !touches_excluded[g] && groups[g].vertices.size() >= 2)
+      kept.push_back(std::move(groups[g]));
   return kept;
 }
 
-Finding coarse_finding(const VertexGroup& group, const ingest::MeshView& mesh, const std::vector<float>& residual,
-                       const Eigen::Vector3d& normal, double spacing, double sigma, double detection_sigma) {
+std::vector<std::uint8_t> near_mesh_boundary(const ingest::MeshView& mesh, int rings) {
+  // Each undirected edge once per triangle; sorted, an edge seen once is on the boundary.
+  std::vector<std::uint64_t> edges;
+  edges.reserve(3 * mesh.triangle_count());
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const auto tri = mesh.triangle(t);
+    for (int e = 0; e < 3; ++e) {
+      const std::uint64_t a = tri[static_cast<std::size_t>(e)],
+                          b = tri[static_cast<std::size_t>((e + 1) % 3)];
+      edges.push_back(std::min(a, b) << 32 | std::max(a, b));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  std::vector<std::uint8_t> near(mesh.vertex_count(), 0);
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i + 1;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i == 1) near[edges[i] >> 32] = near[edges[i] & 0xffffffffu] = 1;
+    i = j;
+  }
+  // Each ring: the vertices of the triangles that hold a vertex of the last.
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<std::uint8_t> grown = near;
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+      const auto tri = mesh.triangle(t);
+      if (near[tri[0]] || near[tri[1]] || near[tri[2]]) grown[tri[0]] = grown[tri[1]] = grown[tri[2]] = 1;
+    }
+    near.swap(grown);
+  }
+  return near;
+}
+
+Finding coarse_finding(const VertexGroup& group, const ingest::MeshView& mesh,
+                       const std::vector<float>& residual, const Eigen::Vector3d& normal, double spacing,
+                       double sigma, double detection_sigma) {
   const double height = residual[group.apex];
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   double weights = 0.0;

@@ -33,11 +33,17 @@ std::vector<VertexGroup> coherent_groups(const ingest::MeshView& mesh, const std
                                          const std::vector<std::uint8_t>& excluded, double sigma,
                                          double seed_sigmas, double member_sigmas);
 
+// Per vertex, 1 within 'rings' edges of the mesh's boundary (an edge of one triangle: the
+// panel's outline, an opening, a dropout), else 0. A rolled edge falls away there, and
+// the local surface of a vertex on it is all on one side.
+std::vector<std::uint8_t> near_mesh_boundary(const ingest::MeshView& mesh, int rings);
+
 // A group as a finding, in the scan frame: its position the residual-weighted mean of
 // its vertices, its height the apex's residual, its diameter 4 × the equivalent radius of
 // its vertices over half that height (each standing for spacing² of panel: a cos² profile's
 // full width), its normal 'normal' (towards the sensor), its score from the apex's SNR.
-Finding coarse_finding(const VertexGroup& group, const ingest::MeshView& mesh, const std::vector<float>& residual,
-                       const Eigen::Vector3d& normal, double spacing, double sigma, double detection_sigma);
+Finding coarse_finding(const VertexGroup& group, const ingest::MeshView& mesh,
+                       const std::vector<float>& residual, const Eigen::Vector3d& normal, double spacing,
+                       double sigma, double detection_sigma);
 
 }  // namespace dentmark::detect

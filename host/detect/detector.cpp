@@ -61,6 +61,8 @@ constexpr double kCoarseSpacing = 0.0025;
 constexpr double kCoarseInner = 1.6;
 constexpr double kCoarseOuter = 6.0;
 constexpr double kCoarseMember = 3.0;
+// Vertices within this many edges of the mesh's boundary are no defect's (a rolled edge).
+constexpr int kCoarseBorderRings = 2;
 
 // A candidate: connected pixels over the deviation test or in an eq. (3)-(4) group.
 struct Candidate {
@@ -513,32 +515,38 @@ void add_along_feature_defects(const CandidateSet& cs, const DesignTest& is_desi
 
 // Coarse scans (kCoarseSpacing): the dents and bumps of the map are replaced by those of
 // the vertices, coherent groups standing out of their neighbours' robust local surface
-// (local_surface_fit.h, coarse_defects.h). No group may touch a design feature's
-// candidate (by shape: border, size, a line), a fold line, the border zone or a hole,
+// (local_surface_fit.h, coarse_defects.h). No group may touch a candidate larger than
+// any defect (a handle) or touching the border, a fold line, the border zone or a hole,
 // widened by a pixel; the features found on the map stay as they are.
-void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSet& cs, const cv::Mat& edge_zone,
+void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSet& cs,
                                  const cv::Mat& hole_zone, const DetectConfig& cfg, Detection& out) {
   const HeightMap& map = out.map;
   const double spacing = out.stats.spacing;
-  cv::Mat zone = edge_zone | hole_zone | cs.fold_px;
+  cv::Mat zone = hole_zone | cs.fold_px;
+  // A pixel is two spacings: one a steep defect leaves empty makes the map's border zone,
+  // and three of a defect in a row are "long and thin" by shape. Only candidates too large
+  // for a defect count here, and the border is the mesh's own (near_mesh_boundary).
   for (const Candidate& comp : cs.comps)
-    if (!comp.pixels.empty() && design_reason(comp.shape, cfg))
+    if (!comp.pixels.empty() && comp.shape.length > cfg.max_defect_diameter)
       for (auto k : comp.pixels) zone.data[k] = 255;
   dilate_in_strips(zone, zone, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
 
   const std::size_t n = mesh.vertex_count();
   std::vector<Eigen::Vector3f> points(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
   std::vector<std::int32_t> pixel(n, -1);
-  std::vector<std::uint8_t> excluded(n, 1);
+  std::vector<std::uint8_t> excluded = near_mesh_boundary(mesh, kCoarseBorderRings);
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     const auto vi = static_cast<std::size_t>(i);
     const Eigen::Vector3d q = map.to_map(mesh.vertex(vi).cast<double>());
     const long k = map.pixel_of(q.x(), q.y());
-    if (k < 0 || !(map.weight[static_cast<std::size_t>(k)] > 0.0f)) continue;
+    if (k < 0 || !(map.weight[static_cast<std::size_t>(k)] > 0.0f)) {
+      excluded[vi] = 1;
+      continue;
+    }
     points[vi] = q.cast<float>();
     pixel[vi] = static_cast<std::int32_t>(k);
-    excluded[vi] = zone.data[k];
+    excluded[vi] |= zone.data[k];
   }
   LocalFitOptions fit;
   fit.inner_radius = kCoarseInner * spacing;
@@ -554,9 +562,11 @@ void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSe
   out.defects.clear();
   for (auto& l : out.labels)
     if (l >= 0) l = -1;
-  for (const VertexGroup& g : coherent_groups(mesh, residual, excluded, sigma, cfg.detection_sigma, kCoarseMember)) {
+  for (const VertexGroup& g :
+       coherent_groups(mesh, residual, excluded, sigma, cfg.detection_sigma, kCoarseMember)) {
     const std::int32_t k = pixel[g.apex];
-    const Eigen::Vector3d normal = patch_normal(map, cfg.normal_patch, k / map.cols, k % map.cols, cs.not_surface);
+    const Eigen::Vector3d normal =
+        patch_normal(map, cfg.normal_patch, k / map.cols, k % map.cols, cs.not_surface);
     Finding f = coarse_finding(g, mesh, residual, normal, spacing, sigma, cfg.detection_sigma);
     if (std::abs(f.defect.height) < cfg.min_height) continue;
     const int label = static_cast<int>(out.defects.size());
@@ -664,7 +674,7 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   measure_candidates(scene, cs.comps, is_design, cs.not_surface, cfg, measured, normals);
   classify_candidates(cs.comps, measured, normals, is_design, deviation.spikes, sigma3, cfg, out);
   if (st.spacing >= kCoarseSpacing) {
-    replace_with_vertex_defects(mesh, cs, edge_zone, hole_zone, cfg, out);
+    replace_with_vertex_defects(mesh, cs, hole_zone, cfg, out);
     lap("coarse vertices");
   }
   if (cfg.along_features && !coarse) {

@@ -25,12 +25,14 @@ constexpr int kTrimmedSteps = 4;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
-Vector6d monomials(double x, double y) { return (Vector6d() << 1.0, x, y, x * x, x * y, y * y).finished(); }
+Vector6d monomials(double x, double y) {
+  return (Vector6d() << 1.0, x, y, x * x, x * y, y * y).finished();
+}
 
 // Weighted least squares of w over the monomials (x, y scaled by 'scale'); false when
 // ill-conditioned (the annulus on one side of a border, say).
-bool solve_quadratic(const std::vector<Eigen::Vector3d>& ring, const std::vector<double>& weight, double scale,
-                     Vector6d& coef) {
+bool solve_quadratic(const std::vector<Eigen::Vector3d>& ring, const std::vector<double>& weight,
+                     double scale, Vector6d& coef) {
   Matrix6d a = Matrix6d::Zero();
   Vector6d b = Vector6d::Zero();
   for (std::size_t j = 0; j < ring.size(); ++j) {
@@ -98,18 +100,21 @@ std::vector<float> local_surface_residuals(const std::vector<Eigen::Vector3f>& p
   std::vector<float> out(n, std::numeric_limits<float>::quiet_NaN());
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::max()), hi = -lo;
   for (const auto& p : points)
-    if (p.allFinite()) lo = lo.cwiseMin(p.head<2>().cast<double>()), hi = hi.cwiseMax(p.head<2>().cast<double>());
+    if (p.allFinite())
+      lo = lo.cwiseMin(p.head<2>().cast<double>()), hi = hi.cwiseMax(p.head<2>().cast<double>());
   if (!(hi.x() >= lo.x())) return out;
   // A uniform grid of cells at least the annulus's outer radius wide: each vertex's
   // neighbours are in its own cell and the eight around it.
   const double cell = std::max(options.outer_radius, (hi - lo).maxCoeff() / kMaxCellsPerAxis);
-  const int cols = static_cast<int>((hi.x() - lo.x()) / cell) + 1, rows = static_cast<int>((hi.y() - lo.y()) / cell) + 1;
+  const int cols = static_cast<int>((hi.x() - lo.x()) / cell) + 1,
+            rows = static_cast<int>((hi.y() - lo.y()) / cell) + 1;
   const auto cell_of = [&](const Eigen::Vector3f& p) {
     const int c = std::min(cols - 1, static_cast<int>((p.x() - lo.x()) / cell));
     const int r = std::min(rows - 1, static_cast<int>((p.y() - lo.y()) / cell));
     return static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
   };
-  std::vector<std::uint32_t> start(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) + 1, 0), order;
+  std::vector<std::uint32_t> start(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) + 1, 0),
+      order;
   for (const auto& p : points)
     if (p.allFinite()) ++start[cell_of(p) + 1];
   for (std::size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
@@ -130,10 +135,12 @@ std::vector<float> local_surface_residuals(const std::vector<Eigen::Vector3f>& p
       if (!p.allFinite()) continue;
       ring.clear();
       const std::size_t k = cell_of(p);
-      const int r0 = static_cast<int>(k / static_cast<std::size_t>(cols)), c0 = static_cast<int>(k % static_cast<std::size_t>(cols));
+      const int r0 = static_cast<int>(k / static_cast<std::size_t>(cols)),
+                c0 = static_cast<int>(k % static_cast<std::size_t>(cols));
       for (int r = std::max(0, r0 - 1); r <= std::min(rows - 1, r0 + 1); ++r)
         for (int c = std::max(0, c0 - 1); c <= std::min(cols - 1, c0 + 1); ++c) {
-          const std::size_t cc = static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
+          const std::size_t cc =
+              static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
           for (std::uint32_t q = start[cc]; q < start[cc + 1]; ++q) {
             const Eigen::Vector3d d = (points[order[q]] - p).cast<double>();
             const double r2 = d.head<2>().squaredNorm();

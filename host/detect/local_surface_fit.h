@@ -31,6 +31,7 @@ std::vector<float> local_surface_residuals(const std::vector<Eigen::Vector3f>& p
 // The residual along the normal of point p = (0, 0, w0) over the robust quadratic fitted
 // to 'ring' (coordinates relative to p, in m); NaN when under min_points remain or the
 // fit is singular. One vertex's fit, exposed for tests.
-double robust_quadratic_residual(double w0, const std::vector<Eigen::Vector3d>& ring, const LocalFitOptions& options);
+double robust_quadratic_residual(double w0, const std::vector<Eigen::Vector3d>& ring,
+                                 const LocalFitOptions& options);
 
 }  // namespace dentmark::detect

@@ -16,7 +16,9 @@ namespace dentmark::detect {
 namespace {
 
 // w = a + b x + c y + d x² + e xy + f y², a panel patch 3 mm high over 30 mm, sloping.
-double quadratic(double x, double y) { return 0.003 + 0.2 * x - 0.1 * y + 1.5 * x * x + 0.8 * x * y - 0.6 * y * y; }
+double quadratic(double x, double y) {
+  return 0.003 + 0.2 * x - 0.1 * y + 1.5 * x * x + 0.8 * x * y - 0.6 * y * y;
+}
 
 // The ring of a 5 mm grid from 8 to 30 mm round (0, 0), heights on 'quadratic'.
 std::vector<Eigen::Vector3d> ring_on_quadratic() {
@@ -135,8 +137,10 @@ TEST(CoarseFinding, IsCentredOnTheGroupsResidualsWithTheApexHeight) {
   std::vector<float> residual(mesh.vertices.size(), 0.0f);
   residual[5 * n + 5] = -0.003f, residual[5 * n + 6] = -0.001f;
   const VertexGroup g{{static_cast<std::uint32_t>(5 * n + 5), static_cast<std::uint32_t>(5 * n + 6)},
-                      static_cast<std::uint32_t>(5 * n + 5), -1};
-  const Finding f = coarse_finding(g, ingest::MeshView(mesh), residual, Eigen::Vector3d::UnitZ(), 0.005, 3e-4, 5.5);
+                      static_cast<std::uint32_t>(5 * n + 5),
+                      -1};
+  const Finding f =
+      coarse_finding(g, ingest::MeshView(mesh), residual, Eigen::Vector3d::UnitZ(), 0.005, 3e-4, 5.5);
   EXPECT_EQ(f.defect.defect_class, protocol::DefectClass::kDent);
   EXPECT_DOUBLE_EQ(f.defect.height, static_cast<double>(-0.003f));
   // x: (3 × 25 mm + 1 × 30 mm) / 4 = 26.25 mm.
