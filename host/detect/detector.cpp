@@ -515,9 +515,9 @@ void add_along_feature_defects(const CandidateSet& cs, const DesignTest& is_desi
 
 // Coarse scans (kCoarseSpacing): the dents and bumps of the map are replaced by those of
 // the vertices, coherent groups standing out of their neighbours' robust local surface
-// (local_surface_fit.h, coarse_defects.h). No group may touch a candidate larger than
-// any defect (a handle) or touching the border, a fold line, the border zone or a hole,
-// widened by a pixel; the features found on the map stay as they are.
+// (local_surface_fit.h, coarse_defects.h). No group may touch a map candidate larger
+// than any defect (a handle), a fold line or a hole (widened by a pixel), or come within
+// kCoarseBorderRings edges of the mesh's boundary; the map's features stay as they are.
 void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSet& cs,
                                  const cv::Mat& hole_zone, const DetectConfig& cfg, Detection& out) {
   const HeightMap& map = out.map;

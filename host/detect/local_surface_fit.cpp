@@ -70,7 +70,8 @@ double robust_quadratic_residual(double w0, const std::vector<Eigen::Vector3d>& 
   // start that a handle's wall over a third of the annulus has pulled millimetres up, it
   // settles between wall and panel. Concentration steps of least trimmed squares
   // (Rousseeuw and Van Driessen, "Computing LTS regression for large data sets", 2006)
-  // refit the half of the annulus closest to the fit until the half stays the same.
+  // refit the half of the annulus closest to the last fit; none raises the trimmed sum of
+  // squares, and a few reach a wall-free half from a start a wall has tilted.
   for (int step = 0; step < kTrimmedSteps; ++step) {
     update_residuals();
     std::vector<double> sorted = abs_residual;
