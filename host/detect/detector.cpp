@@ -561,7 +561,7 @@ void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSe
   // The map's dents and bumps give way; their pixels are unlabelled.
   out.defects.clear();
   for (auto& l : out.labels)
-    if (l >= 0) l = -1;
+    if (l >= 0) l = kNoFinding;
   for (const VertexGroup& g :
        coherent_groups(mesh, residual, excluded, sigma, cfg.detection_sigma, kCoarseMember)) {
     const std::int32_t k = pixel[g.apex];
