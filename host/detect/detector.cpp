@@ -15,6 +15,7 @@
 #include "background.h"
 #include "border_zone.h"
 #include "charts.h"
+#include "coarse_defects.h"
 #include "dentmark/common/nth_smallest.h"
 #include "dentmark/host/detect/apex_fit.h"
 #include "dentmark/host/detect/grouping.h"
@@ -27,6 +28,7 @@
 #include "dilate.h"
 #include "findings.h"
 #include "holes.h"
+#include "local_surface_fit.h"
 #include "measure_candidate.h"
 #include "patch_normal.h"
 #include "stray_points.h"
@@ -49,6 +51,18 @@ constexpr double kOpposedLeafShare = 1e-4;
 // ... and parts of at least this many triangles (or 1 % of them) may be views merged
 // without sharing an edge, each wound its own way.
 constexpr std::size_t kLargePart = 1000;
+// Coarse scans: at this spacing or more a 9 mm defect spans under four samples and a map
+// pixel of two spacings averages it away; defects are then found on the vertices
+// (coarse_defects.h). The local surface is fitted over an annulus from kCoarseInner to
+// kCoarseOuter spacings round each vertex (its first ring of neighbours left out); a
+// vertex over kCoarseMember robust σ joins a neighbour's group (hysteresis under the
+// detection threshold; a Gaussian sample passes it 1 time in 700).
+constexpr double kCoarseSpacing = 0.0025;
+constexpr double kCoarseInner = 1.6;
+constexpr double kCoarseOuter = 6.0;
+constexpr double kCoarseMember = 3.0;
+// Vertices within this many edges of the mesh's boundary are no defect's (a rolled edge).
+constexpr int kCoarseBorderRings = 2;
 
 // A candidate: connected pixels over the deviation test or in an eq. (3)-(4) group.
 struct Candidate {
@@ -499,6 +513,72 @@ void add_along_feature_defects(const CandidateSet& cs, const DesignTest& is_desi
   }
 }
 
+// Coarse scans (kCoarseSpacing): the dents and bumps of the map are replaced by those of
+// the vertices, coherent groups standing out of their neighbours' robust local surface
+// (local_surface_fit.h, coarse_defects.h). No group may touch a map candidate larger
+// than any defect (a handle), a fold line or a hole (widened by a pixel), or come within
+// kCoarseBorderRings edges of the mesh's boundary; the map's features stay as they are.
+void replace_with_vertex_defects(const ingest::MeshView& mesh, const CandidateSet& cs,
+                                 const cv::Mat& hole_zone, const DetectConfig& cfg, Detection& out) {
+  const HeightMap& map = out.map;
+  const double spacing = out.stats.spacing;
+  cv::Mat zone = hole_zone | cs.fold_px;
+  // A pixel is two spacings: one a steep defect leaves empty makes the map's border zone,
+  // and three of a defect in a row are "long and thin" by shape. Only candidates too large
+  // for a defect count here, and the border is the mesh's own (near_mesh_boundary).
+  for (const Candidate& comp : cs.comps)
+    if (!comp.pixels.empty() && comp.shape.length > cfg.max_defect_diameter)
+      for (auto k : comp.pixels) zone.data[k] = 255;
+  dilate_in_strips(zone, zone, cv::getStructuringElement(cv::MORPH_RECT, {3, 3}));
+
+  const std::size_t n = mesh.vertex_count();
+  std::vector<Eigen::Vector3f> points(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  std::vector<std::int32_t> pixel(n, -1);
+  std::vector<std::uint8_t> excluded = near_mesh_boundary(mesh, kCoarseBorderRings);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+    const auto vi = static_cast<std::size_t>(i);
+    const Eigen::Vector3d q = map.to_map(mesh.vertex(vi).cast<double>());
+    const long k = map.pixel_of(q.x(), q.y());
+    if (k < 0 || !(map.weight[static_cast<std::size_t>(k)] > 0.0f)) {
+      excluded[vi] = 1;
+      continue;
+    }
+    points[vi] = q.cast<float>();
+    pixel[vi] = static_cast<std::int32_t>(k);
+    excluded[vi] |= zone.data[k];
+  }
+  LocalFitOptions fit;
+  fit.inner_radius = kCoarseInner * spacing;
+  fit.outer_radius = kCoarseOuter * spacing;
+  const std::vector<float> residual = local_surface_residuals(points, fit);
+  std::vector<double> magnitudes;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!excluded[i] && std::isfinite(residual[i])) magnitudes.push_back(std::abs(residual[i]));
+  if (magnitudes.empty()) return;
+  const double sigma = std::max(robust_sigma(std::move(magnitudes)), 1e-9);
+
+  // The map's dents and bumps give way; their pixels are unlabelled.
+  out.defects.clear();
+  for (auto& l : out.labels)
+    if (l >= 0) l = kNoFinding;
+  for (const VertexGroup& g :
+       coherent_groups(mesh, residual, excluded, sigma, cfg.detection_sigma, kCoarseMember)) {
+    const std::int32_t k = pixel[g.apex];
+    const Eigen::Vector3d normal =
+        patch_normal(map, cfg.normal_patch, k / map.cols, k % map.cols, cs.not_surface);
+    Finding f = coarse_finding(g, mesh, residual, normal, spacing, sigma, cfg.detection_sigma);
+    if (std::abs(f.defect.height) < cfg.min_height) continue;
+    const int label = static_cast<int>(out.defects.size());
+    for (const std::uint32_t v : g.vertices) {
+      out.labels[static_cast<std::size_t>(pixel[v])] = label;
+      ++f.pixels;
+    }
+    f.defect.id = static_cast<std::uint32_t>(label);
+    out.defects.push_back(std::move(f));
+  }
+}
+
 // Holes: each a defect (hole_finding), appended to out.defects with its pixels labelled.
 void add_hole_defects(const std::vector<HoleRegion>& holes, const std::vector<float>& ref,
                       const cv::Mat& hole_zone, const DetectConfig& cfg, Detection& out) {
@@ -593,6 +673,10 @@ Detection inspect(const ingest::MeshView& input, const ingest::MeshView& mesh,
   std::vector<Eigen::Vector3d> normals;
   measure_candidates(scene, cs.comps, is_design, cs.not_surface, cfg, measured, normals);
   classify_candidates(cs.comps, measured, normals, is_design, deviation.spikes, sigma3, cfg, out);
+  if (st.spacing >= kCoarseSpacing) {
+    replace_with_vertex_defects(mesh, cs, hole_zone, cfg, out);
+    lap("coarse vertices");
+  }
   if (cfg.along_features && !coarse) {
     add_along_feature_defects(cs, is_design, deviation, edge_zone, hole_zone, scales, sigma3, cfg, out);
     lap("along features");
