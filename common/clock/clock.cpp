@@ -209,6 +209,11 @@ std::uint64_t LockstepClock::dispatches() const {
   return dispatches_;
 }
 
+std::size_t LockstepClock::waiting() const {
+  std::lock_guard lock(mutex_);
+  return waiting_.size();
+}
+
 void LockstepClock::dispatch_locked() {
   bool woke = false;
   while (running_ == 0 && !waiting_.empty()) {

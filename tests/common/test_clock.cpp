@@ -208,14 +208,15 @@ TEST(LockstepClock, TiesGoToTheFirstToWait) {
   std::mutex m;
   std::vector<int> order;
   std::vector<dentmark::clock::ParticipantThread> ts;
+  ts.reserve(4);
   for (int i = 0; i < 4; ++i) {
     ts.emplace_back(clock, [&, i] {
-      // Each registers in turn: i waits i ms of real time before sleeping.
-      std::this_thread::sleep_for(std::chrono::milliseconds(5 * i));
       clock.sleep_until(1.0);
       std::lock_guard lock(m);
       order.push_back(i);
     });
+    // Each waits in turn: the next starts once this one is waiting (time is held).
+    while (clock.waiting() < static_cast<std::size_t>(i + 1)) std::this_thread::yield();
   }
   clock.resume();
   for (auto& t : ts) t.join();

@@ -7,6 +7,7 @@
 // keeps sub-microsecond resolution for more than a year of uptime.
 
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -154,6 +155,8 @@ class LockstepClock final : public Clock {
   void advance(double dt);
   // How many times time has moved to a waiting thread's deadline (diagnostics).
   std::uint64_t dispatches() const;
+  // How many threads wait on the clock now (diagnostics).
+  std::size_t waiting() const;
 
  private:
   struct Waiter {
