@@ -2,6 +2,8 @@
 // Shared by the end-to-end detection tests (test_detect*.cpp): a synthetic scan run
 // through the detector and scored against its truth, the small door, and meshes of what
 // a scanner sees beside the panel.
+#include <gtest/gtest.h>
+
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <functional>
@@ -49,6 +51,15 @@ inline ScanRun run(const sim::scan::ScanOptions& o, const std::function<void(ing
 }
 
 // A small door (0.5 x 0.4 m) at 0.5 mm / 20 µm with defects at the target limits.
+// The paper's case (§V): its one bump, and nothing else, found as a bump within 5 mm.
+inline void expect_only_the_papers_bump(const ScanRun& r) {
+  EXPECT_EQ(r.eval.matched, 1);
+  EXPECT_EQ(r.eval.false_alarms, 0);
+  EXPECT_LE(r.eval.max_position_error, 0.005);
+  ASSERT_EQ(r.det.defects.size(), 1u);
+  EXPECT_EQ(r.det.defects[0].defect.defect_class, protocol::DefectClass::kBump);
+}
+
 inline sim::scan::ScanOptions small_door(std::uint64_t seed) {
   sim::scan::ScanOptions o;
   o.seed = seed;

@@ -45,11 +45,8 @@ TEST(DetectCoarse, ThePapersBumpIsFoundWithin5mmAndTheHandleIsNot) {
     SCOPED_TRACE(spacing);
     const sim::scan::ScanOptions o = papers_door(spacing);
     const ScanRun r = run(o);
-    EXPECT_EQ(r.eval.matched, 1);
-    EXPECT_EQ(r.eval.false_alarms, 0);
-    EXPECT_LE(r.eval.max_position_error, 0.005);
-    ASSERT_EQ(r.det.defects.size(), 1u);
-    EXPECT_EQ(r.det.defects[0].defect.defect_class, protocol::DefectClass::kBump);
+    expect_only_the_papers_bump(r);
+    if (r.det.defects.size() != 1u) continue;  // (reported above)
     // The height is the highest sample's: over the detection threshold (5.5 σ), and no
     // higher than the apex plus 4 σ of noise (a sample 2 mm off the apex reads 7 mm).
     EXPECT_GT(r.det.defects[0].defect.height, 5.5 * o.noise);
