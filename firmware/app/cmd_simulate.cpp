@@ -369,7 +369,7 @@ void register_simulate(CLI::App& app) {
   cmd->add_option(
       "--fault", opt->faults,
       "Inject a fault KIND@SECONDS after marking starts: estop, robot-link, robot-blip, robot-fault, "
-      "camera, tracking (repeatable)");
+      "camera, tracking, daemon-kill (SIGKILL, restarted after 1 s) (repeatable)");
   cmd->add_option("--frame-time", opt->frame_time,
                   "Seconds of simulated time the target board takes to track one stereo frame")
       ->check(CLI::Range(0.0, 1.0))

@@ -133,8 +133,11 @@ void EdgeDaemon::start() {
 }
 
 void EdgeDaemon::stop() {
-  if (server_) server_->stop();
+  // Nothing more goes out; stopping the station then wakes the link threads that
+  // follow its job, so the link's stop need not wait out a heartbeat.
+  if (server_) server_->begin_stop();
   if (station_) station_->stop();
+  if (server_) server_->stop();
   if (cameras_) cameras_->stop();
   if (supervisor_) supervisor_->close_valve();
   if (robot_ && started_) {

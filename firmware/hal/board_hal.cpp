@@ -14,9 +14,10 @@
 
 namespace dentmark::hal {
 
-std::unique_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice& choice,
+std::shared_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice& choice,
                                 clock::Clock& clock) {
   if (choice.simulate || board.gpio.backend == board::GpioBackend::kSim) {
+    if (choice.sim_chip) return choice.sim_chip;
     std::vector<std::string> lines{board.gpio.sprayer_valve.name, board.gpio.estop.name};
     if (!board.gpio.part_present.name.empty()) lines.push_back(board.gpio.part_present.name);
     return std::make_unique<SimGpio>(lines, clock, choice.gpio_record);

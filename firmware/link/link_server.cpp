@@ -65,14 +65,18 @@ void LinkServer::start() {
   acceptor_ = std::thread([this] { accept_loop(); });
 }
 
-void LinkServer::stop() {
-  if (!running_) return;
-  running_ = false;
-  stopping_ = true;
+void LinkServer::begin_stop() {
+  if (!running_ || stopping_.exchange(true)) return;
   const std::uint64_t one = 1;
   // Level-triggered and never read: every poll() on stop_fd_ wakes from now on.
   [[maybe_unused]] const auto n = ::write(stop_fd_, &one, sizeof one);
   if (acceptor_.joinable()) acceptor_.join();
+}
+
+void LinkServer::stop() {
+  if (!running_) return;
+  begin_stop();
+  running_ = false;
   reap(true);
   ::close(listen_fd_);
   ::close(stop_fd_);

@@ -18,7 +18,9 @@
 #include "dentmark/common/protocol/job_session.h"
 #include "dentmark/firmware/board/board_config.h"
 #include "dentmark/firmware/daemon/edge_daemon.h"
+#include "dentmark/firmware/hal/board_hal.h"
 #include "dentmark/firmware/hal/gpio/sim_gpio.h"
+#include "dentmark/firmware/simulation/restartable_daemon.h"
 #include "dentmark/firmware/simulation/self_calibration.h"
 #include "dentmark/firmware/station/station_calibration.h"
 #include "dentmark/firmware/track/panel_model.h"
@@ -40,6 +42,8 @@ constexpr double kRealReplyTimeout = 30.0;  // s for the edge's Ack
 constexpr double kRealJobTimeout = 1800.0;  // s for the whole job
 constexpr double kRealSilence = 120.0;      // s without a message from the edge
 constexpr double kJobEndGrace = 60.0;       // simulated s from the last report to the job's end
+// A killed daemon's restart: systemd's RestartSec (packaging/systemd/dentmark-edge.service).
+constexpr double kRestartAfter = 1.0;
 
 // A frame's own noise seed. cv::RNG's first draws from nearby seeds are nearly the
 // same, which would turn sensor noise into a fixed pattern the door slides over (and
@@ -206,10 +210,10 @@ protocol::JobOutcome run_host(protocol::DefectList& list, std::uint16_t port, cl
 // An outside host (`dentmark send --wait`) sends the list and collects the reports;
 // the twin waits for the list, then for the job to end, and reads the same outcomes
 // from the station.
-protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDaemon& edge,
+protocol::JobOutcome serve_host(const protocol::DefectList& list, RestartableDaemon& daemon,
                                 const std::atomic<bool>& list_arrived, const SimulationOptions& sim) {
   log::info("twin: waiting for the host's list (job " + std::to_string(list.job_id) +
-            "): dentmark send FILE --to 127.0.0.1:" + std::to_string(edge.port()) + " --wait");
+            "): dentmark send FILE --to 127.0.0.1:" + std::to_string(daemon.port()) + " --wait");
   const auto now = [] { return std::chrono::steady_clock::now(); };
   const auto list_deadline = now() + std::chrono::duration<double>(sim.serve_timeout);
   while (!list_arrived && now() < list_deadline) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -217,8 +221,9 @@ protocol::JobOutcome serve_host(const protocol::DefectList& list, daemon::EdgeDa
     throw std::runtime_error("no defect list came within " + std::to_string(sim.serve_timeout) + " s");
   const auto job_deadline = now() + std::chrono::duration<double>(kRealJobTimeout);
   while (now() < job_deadline) {
-    const auto reports = edge.station().reports(list.job_id);
-    if (reports && reports->marks.size() >= list.defects.size() && edge.station().wait_idle(0.0)) {
+    const auto edge = daemon.current();  // empty while a killed daemon restarts
+    const auto reports = edge ? edge->station().reports(list.job_id) : std::nullopt;
+    if (reports && reports->marks.size() >= list.defects.size() && edge->station().wait_idle(0.0)) {
       protocol::JobOutcome outcome;
       for (const protocol::Mark& m : reports->marks) outcome.marks[m.defect_id] = m;
       outcome.complete = true;
@@ -240,10 +245,15 @@ void time_to_safe(ScenarioResult& result, double t_fault, double t_end,
     if (e.line == valve && e.time < t_fault) result.valve_open_at_fault = e.active;
   for (const sim::robot::TipSample& sample : tip)
     if (sample.time < t_fault) result.robot_speed_at_fault = sample.speed;
-  // The valve's last closing after the fault (it stays closed from then on).
+  // The valve's last closing after the fault (it stays closed from then on); a request
+  // of the line (a restarted daemon's) records a closed line that was closed already.
   double closed = t_fault;
-  for (const hal::EdgeRecord& e : edges)
-    if (e.line == valve && e.time > t_fault && e.time < t_end && !e.active) closed = e.time;
+  bool open = result.valve_open_at_fault;
+  for (const hal::EdgeRecord& e : edges) {
+    if (e.line != valve || e.time < t_fault || e.time >= t_end) continue;
+    if (!e.active && open) closed = e.time;
+    open = e.active;
+  }
   result.valve_closed_after = closed - t_fault;
   // The first sample at rest after the last one in motion (the simulator records the
   // instant a move or a braking ends).
@@ -277,6 +287,7 @@ constexpr std::pair<FaultKind, const char*> kFaultNames[] = {
     {FaultKind::kRobotFault, "robot-fault"},
     {FaultKind::kCamera, "camera"},
     {FaultKind::kTrackingLost, "tracking"},
+    {FaultKind::kDaemonKill, "daemon-kill"},
 };
 }  // namespace
 
@@ -439,6 +450,8 @@ void clear_fault(FaultKind kind, const board::BoardConfig& board, hal::SimGpio& 
     case FaultKind::kTrackingLost:
       cameras.panel_gone = false;
       break;
+    case FaultKind::kDaemonKill:
+      break;  // the daemon came back by itself
   }
 }
 
@@ -473,7 +486,7 @@ void prepare_next_job(const std::vector<Fault>& injected, const board::BoardConf
 // are cleared after the first job and the door is made ready for its second scan.
 void run_line(const SimulationOptions& sim, const Workcell& cell, const board::BoardConfig& board,
               clock::Clock& clock, LineStop& stop, hal::SimGpio& gpio, sim::robot::RobotSimulator& robot,
-              DoorCameras& cameras) {
+              DoorCameras& cameras, RestartableDaemon& daemon) {
   std::vector<Fault> faults = sim.faults;
   std::sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.after < b.after; });
   if (!line_wait_until(clock, stop, cell.t_mark)) return;
@@ -503,6 +516,10 @@ void run_line(const SimulationOptions& sim, const Workcell& cell, const board::B
         break;
       case FaultKind::kTrackingLost:
         cameras.panel_gone = true;
+        break;
+      case FaultKind::kDaemonKill:
+        daemon.kill();
+        daemon.restart(kRestartAfter);
         break;
     }
   }
@@ -659,10 +676,12 @@ class ClockHolds {
 // The daemon as the twin runs it: the twin's board, scratch calibration and state, the
 // rendered cameras, the modelled frame time and the clock's holds. With 'serve', the
 // host is outside: its list's age (by its own clock) is run on the line before time starts.
+// The daemon's GPIO is the twin's chip, which outlives a killed daemon.
 daemon::DaemonOptions twin_daemon_options(const SimulationOptions& sim, const ScenarioOptions& scenario,
                                           const board::BoardConfig& board, const fs::path& scratch,
                                           clock::LockstepClock& clock, ClockHolds& holds,
-                                          DoorCameras& cameras, std::atomic<bool>& list_arrived) {
+                                          DoorCameras& cameras, std::atomic<bool>& list_arrived,
+                                          const std::shared_ptr<hal::SimGpio>& chip) {
   daemon::DaemonOptions d;
   d.board = board;
   d.calibration_dir = scratch / "calibration";
@@ -685,9 +704,9 @@ daemon::DaemonOptions twin_daemon_options(const SimulationOptions& sim, const Sc
   d.hal.render = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kLeft, t); };
   d.hal.render_right = [&cameras](double t) { return cameras.render(sim::stereo::Eye::kRight, t); };
   d.hal.sim_frame_period = 1.0 / scenario.fps;
+  d.hal.sim_chip = chip;
   d.station.job.planner.chain.standoff = scenario.standoff;
   d.station.firmware_version = "twin";
-  d.station.on_job_end = [&holds](std::uint64_t) { holds.hold_at_job_end(); };
   d.tracking.grab_timeout = 1.0;
   d.tracking.frame_processing_time = sim.frame_processing_time;
   d.unix_time = [&clock] { return kEpoch + clock.now(); };
@@ -699,15 +718,20 @@ struct RunningTwin {
   clock::LockstepClock& clock;
   ClockHolds& holds;
   LineStop& line;
-  daemon::EdgeDaemon& edge;
+  RestartableDaemon& daemon;
 };
+
+// Waits for the running daemon's station to be idle.
+void wait_station_idle(RestartableDaemon& daemon) {
+  if (const auto edge = daemon.current()) edge->station().wait_idle(kJobEndGrace);
+}
 
 // The next job, once the first has ended and the line has cleared its faults: the door
 // scanned again where it then is, sent while time is held.
 std::pair<protocol::DefectList, protocol::JobOutcome> run_next_job(RunningTwin& twin,
                                                                    const protocol::DefectList& list,
                                                                    const Workcell& cell) {
-  twin.edge.station().wait_idle(kJobEndGrace);
+  wait_station_idle(twin.daemon);
   {
     std::lock_guard lock(twin.line.mutex);
     twin.line.first_job_over = true;
@@ -725,7 +749,7 @@ std::pair<protocol::DefectList, protocol::JobOutcome> run_next_job(RunningTwin& 
   }
   protocol::DefectList next = rescanned(list, cell, t_next);
   return {next, run_host(
-                    next, twin.edge.port(), twin.clock, [&] { twin.holds.release_next(); }, t_next)};
+                    next, twin.daemon.port(), twin.clock, [&] { twin.holds.release_next(); }, t_next)};
 }
 
 // The host's side of the run: the list sent (or served to an outside host), its reports
@@ -734,9 +758,9 @@ RunRecord run_host_side(RunningTwin& twin, const SimulationOptions& sim, protoco
                         const Workcell& cell, std::atomic<bool>& list_arrived) {
   RunRecord run;
   if (sim.serve)
-    run.outcome = serve_host(list, twin.edge, list_arrived, sim);
+    run.outcome = serve_host(list, twin.daemon, list_arrived, sim);
   else
-    run.outcome = run_host(list, twin.edge.port(), twin.clock, [&] { twin.holds.start(); });
+    run.outcome = run_host(list, twin.daemon.port(), twin.clock, [&] { twin.holds.start(); });
   if (sim.next_job && !sim.serve) run.next = run_next_job(twin, list, cell);
   return run;
 }
@@ -748,10 +772,10 @@ void finish_run(RunningTwin& twin, clock::ParticipantThread& line_thread, sim::r
                 const ScenarioOptions& scenario, ScenarioResult& result) {
   twin.holds.start();
   twin.holds.release_next();
-  twin.edge.station().wait_idle(kJobEndGrace);
+  wait_station_idle(twin.daemon);
   result.sim_seconds = twin.clock.now();
-  if (twin.edge.cameras()) {
-    result.frames_tracked = twin.edge.cameras()->pairs_captured();
+  if (const auto edge = twin.daemon.current(); edge && edge->cameras()) {
+    result.frames_tracked = twin.daemon.pairs_captured();
     // The cameras' frames from t = 0 to the end, both included.
     result.frames_offered = static_cast<long>(std::floor(result.sim_seconds * scenario.fps + 1e-6)) + 1;
   }
@@ -762,7 +786,7 @@ void finish_run(RunningTwin& twin, clock::ParticipantThread& line_thread, sim::r
   }
   twin.clock.notify_all(twin.line.changed);
   line_thread.join();
-  twin.edge.stop();
+  twin.daemon.stop();
   robot.stop();
 }
 
@@ -790,23 +814,36 @@ ScenarioResult run_scenario(const ScenarioOptions& scenario, const SimulationOpt
   commission(cell, cameras.renderer(), list.panel_id, scratch.path / "calibration", self ? &*self : nullptr);
 
   std::atomic<bool> list_arrived{false};
-  daemon::DaemonOptions d =
-      twin_daemon_options(sim, scenario, board, scratch.path, clock, holds, cameras, list_arrived);
-  if (sim.truth_motion)
-    d.tracking_override = [&](const station::StationCalibration&) {
-      return std::make_unique<TruthTracking>(cell.motion, clock);
+  hal::HalChoice simulated;
+  simulated.simulate = true;
+  const auto chip = std::dynamic_pointer_cast<hal::SimGpio>(hal::make_gpio(board, simulated, clock));
+  hal::SimGpio& gpio = *chip;
+  std::unique_ptr<RestartableDaemon> edge;
+  const auto daemon_options = [&](int n) {
+    daemon::DaemonOptions d =
+        twin_daemon_options(sim, scenario, board, scratch.path, clock, holds, cameras, list_arrived, chip);
+    // A killed daemon's job end no longer holds the twin's clock.
+    d.station.on_job_end = [&, n](std::uint64_t) {
+      if (edge->is_current(n)) holds.hold_at_job_end();
     };
-  daemon::EdgeDaemon edge(std::move(d), clock);
-  edge.start();
-  auto& gpio = dynamic_cast<hal::SimGpio&>(edge.gpio());
+    if (sim.truth_motion)
+      d.tracking_override = [&](const station::StationCalibration&) {
+        return std::make_unique<TruthTracking>(cell.motion, clock);
+      };
+    return d;
+  };
+  // The restarted daemon ends the killed one's job at once: time stands still, as at
+  // any job's end, until the host side has its reports.
+  edge = std::make_unique<RestartableDaemon>(daemon_options, clock, gpio, *robot_sim,
+                                             [&holds] { holds.hold_at_job_end(); });
   clock::ParticipantThread line(
-      clock, [&] { run_line(sim, cell, board, clock, line_stop, gpio, *robot_sim, cameras); });
+      clock, [&] { run_line(sim, cell, board, clock, line_stop, gpio, *robot_sim, cameras, *edge); });
 
   ScenarioResult result;
   result.options = scenario;
   note_calibration(result, cell, self);
   result.defects_sent = static_cast<int>(list.defects.size());
-  RunningTwin twin{clock, holds, line_stop, edge};
+  RunningTwin twin{clock, holds, line_stop, *edge};
   RunRecord run;
   try {
     run = run_host_side(twin, sim, list, cell, list_arrived);

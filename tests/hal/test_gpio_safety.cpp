@@ -81,6 +81,38 @@ TEST(SimGpio, EveryEdgeIsRecordedWithItsTime) {
   ::unlink(path);
 }
 
+TEST(SimGpio, ReleaseAllEndsEveryRequestAsAKilledProcessDoes) {
+  clock::SimClock c(0.0, 2.0);
+  SimGpio chip = make_chip(c);
+  auto valve = chip.request_output({"sprayer-valve", false}, false);
+  auto estop = chip.request_input({"estop", true});
+  valve->set(true);
+  c.advance(0.5);
+  chip.release_all();
+  EXPECT_FALSE(chip.level("sprayer-valve")) << "a released output falls back to inactive";
+  const auto e = chip.edges();
+  ASSERT_EQ(e.size(), 3u);
+  EXPECT_FALSE(e[2].active);
+  EXPECT_DOUBLE_EQ(e[2].time, 2.5);
+  // The old handles act no more: the valve stays closed, the e-stop's edges go to the new request.
+  valve->set(true);
+  valve->force_inactive();
+  EXPECT_FALSE(chip.level("sprayer-valve"));
+  EXPECT_EQ(chip.edges().size(), 3u);
+  auto valve2 = chip.request_output({"sprayer-valve", false}, false);  // free again
+  auto estop2 = chip.request_input({"estop", true});
+  chip.drive("estop", true);
+  EXPECT_FALSE(estop->wait_event(0.0).has_value());
+  valve.reset();  // the old handle's end does not free the new request
+  estop.reset();
+  EXPECT_THROW(chip.request_output({"sprayer-valve", false}, false), GpioError);
+  valve2->set(true);
+  EXPECT_TRUE(chip.level("sprayer-valve"));
+  const auto ev = estop2->wait_event(0.0);
+  ASSERT_TRUE(ev.has_value());
+  EXPECT_TRUE(ev->active);
+}
+
 TEST(SimGpio, BadRecordFileNamesTheLine) {
   char path[] = "/tmp/dentmark-gpio-XXXXXX";
   const int fd = ::mkstemp(path);

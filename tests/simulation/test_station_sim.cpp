@@ -176,6 +176,8 @@ constexpr double kMaxEstimateAge = 0.5;    // s, JobConfig::max_estimate_age
 constexpr double kPulse = 0.15;            // s
 constexpr double kRetract = 0.5;           // s, 60 mm back at 0.25 m/s, 1 m/s²
 constexpr double kTrackingTimeout = 5.0;   // s, JobConfig::tracking_timeout
+constexpr double kRobotWatchdog = 0.5;     // s, the twin robot's heartbeat timeout
+constexpr double kRestartAfter = 1.0;      // s, the unit's RestartSec
 
 TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
   SKIP_UNDER_EMULATION();
@@ -194,9 +196,10 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
     ASSERT_EQ(clean.marked, 4);
     const std::vector<FaultInstant> instants = instants_of(clean);
     ASSERT_EQ(instants.size(), 3u);
-    const auto kinds = cameras ? std::vector{FaultKind::kCamera, FaultKind::kTrackingLost}
-                               : std::vector{FaultKind::kEstop, FaultKind::kRobotLink, FaultKind::kRobotFault,
-                                             FaultKind::kRobotLinkBlip};
+    const auto kinds = cameras
+                           ? std::vector{FaultKind::kCamera, FaultKind::kTrackingLost, FaultKind::kDaemonKill}
+                           : std::vector{FaultKind::kEstop, FaultKind::kRobotLink, FaultKind::kRobotFault,
+                                         FaultKind::kRobotLinkBlip, FaultKind::kDaemonKill};
     for (FaultKind kind : kinds)
       for (const FaultInstant& at : instants) {
         SimulationOptions sim = clean_sim;
@@ -227,13 +230,26 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
         }
         EXPECT_LT(r.marked, 4) << what;
         const std::set<protocol::MarkReason> expected =
-            kind == FaultKind::kEstop ? std::set{protocol::MarkReason::kEmergencyStop}
-            : cameras                 ? std::set{protocol::MarkReason::kTrackingLost}
+            kind == FaultKind::kEstop        ? std::set{protocol::MarkReason::kEmergencyStop}
+            : kind == FaultKind::kDaemonKill ? std::set{protocol::MarkReason::kAborted}
+            : cameras                        ? std::set{protocol::MarkReason::kTrackingLost}
                       : std::set{protocol::MarkReason::kRobotFault, protocol::MarkReason::kTimeout};
         for (const auto& m : r.report.marks)
           if (m.outcome != protocol::MarkOutcome::kMarked) {
             EXPECT_TRUE(expected.count(m.reason)) << what << ": defect " << m.defect_id << " names the fault";
           }
+        if (kind == FaultKind::kDaemonKill) {
+          // The kill ends the valve line's request: the valve closes at once. The robot
+          // hears no heartbeat and its watchdog stops it; the restarted daemon reports
+          // every defect not marked before the kill failed / aborted.
+          for (const auto& e : r.errors)
+            EXPECT_LT(e.t_spray, at.after) << what << ": no spray after the kill";
+          EXPECT_LE(r.valve_closed_after, 0.0) << what;
+          EXPECT_LE(r.robot_still_after, kRobotWatchdog + kBrakingTime) << what;
+          EXPECT_GE(r.reported_after, kRestartAfter - 1e-3) << what << ": only the restarted daemon reports";
+          EXPECT_LE(r.reported_after, kRestartAfter + 0.05) << what;
+          continue;
+        }
         if (cameras) {
           // The loss shows after one frame (panel gone) or once the last estimate is too
           // old (cameras dead); a tool moving towards the panel is stopped at the next
@@ -255,7 +271,8 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
         // is seen at the next robot exchange (poll period) and the valve closes then. A
         // dead link leaves the robot to its own watchdog (0.5 s) and braking.
         EXPECT_LE(r.valve_closed_after, kind == FaultKind::kEstop ? 0.010 : 0.050) << what;
-        EXPECT_LE(r.robot_still_after, kind == FaultKind::kRobotLink ? 0.5 + kBrakingTime : kBrakingTime)
+        EXPECT_LE(r.robot_still_after,
+                  kind == FaultKind::kRobotLink ? kRobotWatchdog + kBrakingTime : kBrakingTime)
             << what;
         EXPECT_LE(r.reported_after, 0.050) << what;
       }

@@ -12,36 +12,42 @@
 
 namespace dentmark::hal {
 
+// A line request: it acts on its line only while it holds it (release_all() ends
+// every request at once, as the kernel does for a killed process).
 class SimOutputLine final : public OutputLine {
  public:
   SimOutputLine(SimGpio& chip, std::string name, SimGpio::Line& line)
-      : chip_(chip), name_(std::move(name)), line_(line) {}
+      : chip_(chip), name_(std::move(name)), line_(line), request_(line.request.load()) {}
   ~SimOutputLine() override {
     std::lock_guard<std::mutex> lock(chip_.mutex_);
-    line_.requested = false;
+    if (held()) line_.requested = false;
   }
   void set(bool active) override {
     std::lock_guard<std::mutex> lock(chip_.mutex_);
-    if (line_.active.exchange(active) != active) chip_.record(name_, active, chip_.clock_.now());
+    if (held() && line_.active.exchange(active) != active) chip_.record(name_, active, chip_.clock_.now());
   }
   bool get() const override { return line_.active.load(); }
   void force_inactive() noexcept override {
-    if (line_.active.exchange(false)) SimGpio::record_signal_safe(chip_.record_fd_, name_.c_str(), false);
+    if (held() && line_.active.exchange(false))
+      SimGpio::record_signal_safe(chip_.record_fd_, name_.c_str(), false);
   }
   const std::string& name() const override { return name_; }
 
  private:
+  bool held() const noexcept { return line_.request.load() == request_; }
   SimGpio& chip_;
   std::string name_;
   SimGpio::Line& line_;
+  const std::uint64_t request_;
 };
 
 class SimInputLine final : public InputLine {
  public:
   SimInputLine(SimGpio& chip, std::string name, SimGpio::Line& line)
-      : chip_(chip), name_(std::move(name)), line_(line) {}
+      : chip_(chip), name_(std::move(name)), line_(line), request_(line.request.load()) {}
   ~SimInputLine() override {
     std::lock_guard<std::mutex> lock(chip_.mutex_);
+    if (!held()) return;
     line_.requested = false;
     line_.events.clear();
   }
@@ -52,9 +58,9 @@ class SimInputLine final : public InputLine {
     // it is driven.
     // One wait: it may end early (callers poll), and on a manual clock it ends after the
     // timeout in real time instead of waiting for time that nobody moves.
-    if (line_.events.empty())
+    if (line_.events.empty() || !held())
       chip_.clock_.wait_until(lock, chip_.changed_, chip_.clock_.now() + std::max(0.0, timeout));
-    if (line_.events.empty()) return std::nullopt;
+    if (line_.events.empty() || !held()) return std::nullopt;
     const LineEvent e = line_.events.front();
     line_.events.pop_front();
     return e;
@@ -62,9 +68,11 @@ class SimInputLine final : public InputLine {
   const std::string& name() const override { return name_; }
 
  private:
+  bool held() const noexcept { return line_.request.load() == request_; }
   SimGpio& chip_;
   std::string name_;
   SimGpio::Line& line_;
+  const std::uint64_t request_;
 };
 
 SimGpio::SimGpio(std::vector<std::string> lines, clock::Clock& clock, const std::string& record_path)
@@ -91,6 +99,7 @@ std::unique_ptr<OutputLine> SimGpio::request_output(const board::GpioLine& line,
   Line& l = find(line.name);
   if (l.requested) throw GpioError("gpio line '" + line.name + "' is busy (already requested)");
   l.requested = true;
+  ++l.request;
   l.output = true;
   // Recorded even when unchanged: the moment the line starts being driven matters.
   l.active.store(initial_active);
@@ -103,6 +112,7 @@ std::unique_ptr<InputLine> SimGpio::request_input(const board::GpioLine& line) {
   Line& l = find(line.name);
   if (l.requested) throw GpioError("gpio line '" + line.name + "' is busy (already requested)");
   l.requested = true;
+  ++l.request;
   l.output = false;
   l.events.clear();
   return std::make_unique<SimInputLine>(*this, line.name, l);
@@ -117,6 +127,20 @@ void SimGpio::drive(const std::string& name, bool active) {
     const double now = clock_.now();
     record(name, active, now);
     if (l.requested) l.events.push_back({active, now});
+  }
+  clock_.notify_all(changed_);
+}
+
+void SimGpio::release_all() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& [name, l] : lines_) {
+      if (!l.requested) continue;
+      l.requested = false;
+      ++l.request;
+      l.events.clear();
+      if (l.output && l.active.exchange(false)) record(name, false, clock_.now());
+    }
   }
   clock_.notify_all(changed_);
 }

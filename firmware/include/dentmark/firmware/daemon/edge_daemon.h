@@ -80,6 +80,7 @@ class EdgeDaemon {
   hal::Robot& robot() { return *robot_; }
   hal::SafetySupervisor& safety() { return *supervisor_; }
   const board::BoardConfig& board() const { return options_.board; }
+  const std::filesystem::path& state_dir() const { return options_.state_dir; }
   const station::StationCalibration& calibration() const { return calibration_; }
   // One line for logs and sd_notify STATUS=.
   std::string describe() const;
@@ -89,7 +90,7 @@ class EdgeDaemon {
   clock::Clock& clock_;
   station::StationCalibration calibration_;
   std::optional<protocol::HmacKey> key_;
-  std::unique_ptr<hal::Gpio> gpio_;
+  std::shared_ptr<hal::Gpio> gpio_;
   std::unique_ptr<hal::InputLine> part_present_;
   std::unique_ptr<hal::SafetySupervisor> supervisor_;
   std::unique_ptr<station::SupervisedSafety> safety_io_;

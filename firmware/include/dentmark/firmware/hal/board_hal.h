@@ -17,16 +17,20 @@
 namespace dentmark::hal {
 
 struct HalChoice {
-  bool simulate = false;           // every device simulated, whatever the board says
-  std::string gpio_record;         // simulated GPIO: file recording every edge (empty: memory only)
+  bool simulate = false;    // every device simulated, whatever the board says
+  std::string gpio_record;  // simulated GPIO: file recording every edge (empty: memory only)
+  // A simulated chip the caller keeps, as gpio-sim's chip outlives the processes that
+  // use it (the twin's, across a daemon's kill and restart). Empty: a chip of our own.
+  std::shared_ptr<Gpio> sim_chip;
   SimCamera::Render render;        // simulated cameras: renders a frame for a time (required for sim)
   SimCamera::Render render_right;  // the right camera's, when it differs (empty: 'render' for both)
   double sim_frame_period = 0.2;   // s (the paper's 5 Hz)
   double sim_right_offset = 0.0;   // s, right sensor's trigger offset
 };
 
-// libgpiod on the board's chip (found by label), or a simulated chip with the board's line names.
-std::unique_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice& choice,
+// libgpiod on the board's chip (found by label), or a simulated chip with the board's
+// line names (choice.sim_chip when given).
+std::shared_ptr<Gpio> make_gpio(const board::BoardConfig& board, const HalChoice& choice,
                                 clock::Clock& clock);
 // The Modbus robot at the board's endpoint, or the in-process simulator with the board's limits.
 std::unique_ptr<Robot> make_robot(const board::BoardConfig& board, const HalChoice& choice,

@@ -80,7 +80,11 @@ class LinkServer {
 
   // Binds and listens, then serves from a background thread. Throws LinkServerError.
   void start();
-  // Stops accepting, wakes and joins every connection thread. Idempotent.
+  // Refuses new connections and sends nothing more; the connections' threads end as
+  // soon as what they wait for returns (a job they follow: Station::stop wakes them).
+  void begin_stop();
+  // begin_stop(), then waits for every connection's thread and closes the sockets.
+  // Idempotent.
   void stop();
   std::uint16_t port() const { return port_; }
   const ServerStats& stats() const { return stats_; }

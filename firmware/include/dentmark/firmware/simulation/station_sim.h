@@ -98,12 +98,14 @@ enum class FaultKind {
   kRobotFault,     // the robot reports its own fault (drive) and stops
   kCamera,         // the cameras stop delivering frames
   kTrackingLost,   // the panel leaves the cameras' view
+  kDaemonKill,     // SIGKILL of the daemon, restarted after RestartSec (RestartableDaemon)
 };
 struct Fault {
   FaultKind kind = FaultKind::kEstop;
   double after = 0.0;  // s after marking starts
 };
-// "estop@2.5", "robot-link@1", "robot-blip@1", "robot-fault@3", "camera@2", "tracking@2".
+// "estop@2.5", "robot-link@1", "robot-blip@1", "robot-fault@3", "camera@2", "tracking@2",
+// "daemon-kill@4".
 // Throws std::invalid_argument naming what is wrong.
 Fault parse_fault(const std::string& text);
 const char* to_string(FaultKind kind);

@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <deque>
 #include <map>
 #include <mutex>
@@ -40,6 +41,10 @@ class SimGpio final : public Gpio {
   // Current logical level of any line.
   bool level(const std::string& line) const;
   std::vector<EdgeRecord> edges() const;
+  // Ends every request at once, as the kernel does when the process holding the lines
+  // dies: an output falls back to inactive (a released line follows its pull, and the
+  // valve is wired to close unpowered), and the old handles no longer act on the lines.
+  void release_all();
 
   // Parses a record file; throws GpioError naming file and line on bad content.
   static std::vector<EdgeRecord> read_record(const std::string& path);
@@ -49,6 +54,7 @@ class SimGpio final : public Gpio {
   friend class SimInputLine;
   struct Line {
     bool requested = false;
+    std::atomic<std::uint64_t> request{0};  // which request holds the line (handles compare)
     bool output = false;
     std::atomic<bool> active{false};  // atomic: force_inactive() changes it without the lock
     std::deque<LineEvent> events;
