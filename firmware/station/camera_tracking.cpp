@@ -22,6 +22,28 @@ struct CameraTracking::Feed {
   bool closed = false;
 };
 
+namespace {
+
+// The tracker's motion, failed for as long as the cameras deliver no pairs: a job sees
+// a dead camera at its next interlock check, not once the last estimate is too old.
+class CameraMotionSource final : public MotionSource {
+ public:
+  CameraMotionSource(std::unique_ptr<MotionSource> tracker, const std::atomic<bool>& cameras_lost)
+      : tracker_(std::move(tracker)), cameras_lost_(cameras_lost) {}
+  std::optional<MotionEstimate> latest() override { return tracker_->latest(); }
+  Transform predict(double t) override { return tracker_->predict(t); }
+  std::optional<std::string> failure() const override {
+    if (cameras_lost_) return "the cameras deliver no frames";
+    return std::nullopt;
+  }
+
+ private:
+  std::unique_ptr<MotionSource> tracker_;
+  const std::atomic<bool>& cameras_lost_;
+};
+
+}  // namespace
+
 CameraTracking::CameraTracking(hal::Camera& left, hal::Camera& right, clock::Clock& clock,
                                CameraTrackingConfig config)
     : stereo_(left, right, config.max_skew, clock), clock_(clock), config_(std::move(config)) {}
@@ -166,8 +188,10 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
     feed->live.reset();
     return f;
   };
-  return std::make_unique<TrackingMotionSource>(config_.calibration, seeds, std::move(frames),
-                                                config_.tracker, &clock_, config_.frame_processing_time);
+  return std::make_unique<CameraMotionSource>(
+      std::make_unique<TrackingMotionSource>(config_.calibration, seeds, std::move(frames), config_.tracker,
+                                             &clock_, config_.frame_processing_time),
+      lost_);
 }
 
 }  // namespace dentmark::station

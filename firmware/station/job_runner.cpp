@@ -74,6 +74,7 @@ void JobRunner::check_interlocks() {
   safety_.kick();
   if (safety_.estop_active()) throw JobAbort{MarkReason::kEmergencyStop, "e-stop active"};
   if (cancelled_) throw JobAbort{MarkReason::kAborted, "job cancelled"};
+  if (const auto why = motion_.failure()) throw JobAbort{MarkReason::kTrackingLost, *why};
 }
 
 hal::RobotStatus JobRunner::move_and_wait(const Transform& T_base_tool, double planned_time, Toward toward) {

@@ -165,14 +165,13 @@ const char* to_string(Instant i) {
   return i == Instant::kBefore ? "before marks" : i == Instant::kMoving ? "moving" : "spraying";
 }
 
-// How the station sees a lost panel: the tracker's estimate counts as lost when it is
-// older than max_estimate_age (dead cameras) or once the next frame is tracked (the
-// panel out of view; the board's modelled 20 ms per frame); a spray that began on a
-// still-valid estimate ends its pulse, and the tool then retracts. The bounds below
-// follow from that.
+// How the station sees a lost panel: dead cameras at the next frame, whose grab fails
+// (the job then goes safe at once); a panel out of view once the next frame is tracked
+// (the board's modelled 20 ms per frame), after which a spray that began on a
+// still-valid estimate ends its pulse and the tool retracts. The bounds below follow
+// from that.
 constexpr double kFramePeriod = 0.1;       // s (10 fps)
 constexpr double kFrameProcessing = 0.02;  // s, SimulationOptions::frame_processing_time
-constexpr double kMaxEstimateAge = 0.5;    // s, JobConfig::max_estimate_age
 constexpr double kPulse = 0.15;            // s
 constexpr double kRetract = 0.5;           // s, 60 mm back at 0.25 m/s, 1 m/s²
 constexpr double kTrackingTimeout = 5.0;   // s, JobConfig::tracking_timeout
@@ -250,12 +249,23 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
           EXPECT_LE(r.reported_after, kRestartAfter + 0.05) << what;
           continue;
         }
+        if (kind == FaultKind::kCamera) {
+          // Dead cameras show at the next frame (its grab fails); the job goes safe at the
+          // next interlock check, cutting a spray short: valve closed, robot stopped and
+          // every defect reported within 50 ms of that.
+          ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
+          EXPECT_LE(r.detected_after, kFramePeriod + 0.05) << what;
+          for (const auto& e : r.errors)
+            EXPECT_LT(e.t_spray, at.after + kFramePeriod) << what << ": spray too late";
+          EXPECT_LE(r.valve_closed_after, r.detected_after + 0.05) << what;
+          EXPECT_LE(r.robot_still_after, r.detected_after + kBrakingTime + 0.05) << what;
+          EXPECT_LE(r.reported_after, r.detected_after + 0.05) << what;
+          continue;
+        }
         if (cameras) {
-          // The loss shows after one frame (panel gone) or once the last estimate is too
-          // old (cameras dead); a tool moving towards the panel is stopped at the next
-          // poll, and no spray starts after that.
-          const double seen =
-              kind == FaultKind::kCamera ? kMaxEstimateAge + kFramePeriod : kFramePeriod + kFrameProcessing;
+          // A panel out of view shows once the next frame is tracked; a tool moving
+          // towards the panel is stopped at the next poll, and no spray starts after that.
+          const double seen = kFramePeriod + kFrameProcessing;
           ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
           for (const auto& e : r.errors)
             EXPECT_LT(e.t_spray, at.after + seen + 0.01) << what << ": spray too late";

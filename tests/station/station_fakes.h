@@ -99,6 +99,7 @@ class MockSafety final : public SafetyIo {
       }
     } catch (...) {
       valve_open = false;
+      cut_at = clock_.now();
       throw;
     }
     valve_open = false;
@@ -109,6 +110,7 @@ class MockSafety final : public SafetyIo {
     offs++;
   }
   double estop_after = -1.0;
+  double cut_at = -1.0;  // s, when a pulse was cut short
   bool valve_open = false;
   int pulses = 0, offs = 0;
 
@@ -135,7 +137,12 @@ class LineMotion final : public MotionSource {
     m.translation() = Eigen::Vector3d(speed_ * t, 0, 0);
     return m;
   }
-  double lost_from = -1.0;
+  std::optional<std::string> failure() const override {
+    if (failed_from >= 0 && clock_.now() >= failed_from) return "cameras dead";
+    return std::nullopt;
+  }
+  double lost_from = -1.0;       // s: estimates not ok from then on (panel out of view)
+  double failed_from = -1.0;     // s: no estimates at all from then on (cameras dead)
   double expected_error = 2e-4;  // m, what the tracker reports
 
  private:

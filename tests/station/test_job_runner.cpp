@@ -145,6 +145,46 @@ TEST(JobRunner, LostTrackingDuringTheApproachStopsTheToolThere) {
   EXPECT_FALSE(safety.valve_open);
 }
 
+TEST(JobRunner, DeadCamerasEndTheJobAtTheNextCheckEvenMidSpray) {
+  // The first spray's time from the same job with working cameras; then the cameras die
+  // 50 ms into that pulse: the valve closes at the next check (10 ms), the robot is
+  // stopped, and both defects are reported failed / tracking_lost (the first may carry
+  // paint and is never sprayed again).
+  const JobConfig cfg = config();
+  const auto list = list_of({{0.1, 0.0}, {0.6, 0.0}});
+  double t_spray = 0.0;
+  {
+    clock::SimClock clock;
+    MockRobot robot(clock, cfg.planner.limits);
+    MockSafety safety(clock);
+    LineMotion motion(clock, 0.014);
+    JobRunner runner(robot, safety, motion, clock, cfg);
+    ASSERT_EQ(runner.run(list, 0.0).marks.size(), 2u);
+    ASSERT_EQ(robot.sprays.size(), 2u);
+    t_spray = robot.sprays[0].t;
+  }
+  clock::SimClock clock;
+  MockRobot robot(clock, cfg.planner.limits);
+  MockSafety safety(clock);
+  LineMotion motion(clock, 0.014);
+  motion.failed_from = t_spray + 0.05;
+  JobRunner runner(robot, safety, motion, clock, cfg);
+  const auto report = runner.run(list, 0.0);
+  EXPECT_EQ(runner.state(), protocol::EdgeState::kSafe);
+  ASSERT_EQ(report.marks.size(), 2u);
+  for (const auto& m : report.marks) {
+    EXPECT_EQ(m.outcome, MarkOutcome::kFailed);
+    EXPECT_EQ(m.reason, MarkReason::kTrackingLost);
+    EXPECT_LE(m.time, motion.failed_from + 0.011);
+  }
+  EXPECT_EQ(safety.pulses, 1);
+  EXPECT_GE(safety.cut_at, motion.failed_from);
+  EXPECT_LE(safety.cut_at, motion.failed_from + 0.011);
+  EXPECT_FALSE(safety.valve_open);
+  EXPECT_GE(robot.aborts, 1);
+  EXPECT_LE(robot.aborted_at, motion.failed_from + 0.011);
+}
+
 TEST(JobRunner, RefusesToMarkWhenTheTrackerIsUnsure) {
   clock::SimClock clock;
   JobConfig cfg = config();

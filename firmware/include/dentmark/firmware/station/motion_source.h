@@ -4,6 +4,7 @@
 // source's own start: p_camL(t) = M(t) · p_camL(t_start).
 
 #include <optional>
+#include <string>
 
 #include "dentmark/common/geometry/transform.h"
 
@@ -27,6 +28,10 @@ class MotionSource {
   virtual std::optional<MotionEstimate> latest() = 0;
   // Motion predicted at time t (constant velocity from the newest estimates).
   virtual Transform predict(double t) = 0;
+  // Why the source can give no more estimates now (its cameras deliver no frames), or
+  // nullopt. The job runner takes it as an interlock and goes safe at once, instead of
+  // coasting on the last estimate until it is too old.
+  virtual std::optional<std::string> failure() const { return std::nullopt; }
 };
 
 }  // namespace dentmark::station
