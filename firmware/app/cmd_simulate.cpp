@@ -201,7 +201,7 @@ std::filesystem::path default_calibration_cache() {
 // not depend on how many share the machine.
 int scenario_workers(const SimulateOptions& opt, std::size_t scenarios) {
   int n = opt.jobs > 0 ? opt.jobs : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
-  if (opt.serve || opt.self_calibrate) n = 1;  // one port; one calibration cache
+  if (opt.serve) n = 1;  // one port
   return std::clamp(n, 1, static_cast<int>(std::max<std::size_t>(1, scenarios)));
 }
 

@@ -1,6 +1,12 @@
 #include "dentmark/firmware/simulation/self_calibration.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <functional>
 #include <random>
 #include <sstream>
@@ -221,6 +227,29 @@ void render_scanner_captures(const sim::stereo::StereoRig& rig, const Transform&
   }
 }
 
+namespace {
+
+// The cache folder held for one twin at a time (flock(2)): scenarios run side by side,
+// and the first to need a calibration makes it while the others wait, then read it.
+class CacheLock {
+ public:
+  explicit CacheLock(const fs::path& dir) {
+    const fs::path path = dir / ".lock";
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0 || ::flock(fd_, LOCK_EX) != 0)
+      throw std::runtime_error(path.string() +
+                               ": cannot lock the calibration cache: " + std::strerror(errno));
+  }
+  ~CacheLock() { ::close(fd_); }  // closing lets the lock go
+  CacheLock(const CacheLock&) = delete;
+  CacheLock& operator=(const CacheLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+}  // namespace
+
 SelfCalibrationResult self_calibrate(const Workcell& cell, const board::BoardConfig& board,
                                      const sim::robot::RobotSimConfig& robot, const fs::path& cache_dir) {
   const std::string station_key = key_of(station_text(cell, robot));
@@ -231,6 +260,7 @@ SelfCalibrationResult self_calibrate(const Workcell& cell, const board::BoardCon
   const std::string scanner_key = key_of(s.str());
   const fs::path dir = cache_dir / station_key;
   fs::create_directories(dir);
+  const CacheLock lock(dir);
   SelfCalibrationResult r;
   r.stereo_yaml = dir / "stereo.yaml";
   r.robot_yaml = dir / "robot.yaml";
