@@ -178,6 +178,73 @@ constexpr double kTrackingTimeout = 5.0;   // s, JobConfig::tracking_timeout
 constexpr double kRobotWatchdog = 0.5;     // s, the twin robot's heartbeat timeout
 constexpr double kRestartAfter = 1.0;      // s, the unit's RestartSec
 
+// Every defect not marked names the fault that stopped it.
+void expect_reasons_name_the_fault(const ScenarioResult& r, FaultKind kind, const std::string& what) {
+  const std::set<protocol::MarkReason> expected =
+      kind == FaultKind::kEstop        ? std::set{protocol::MarkReason::kEmergencyStop}
+      : kind == FaultKind::kDaemonKill ? std::set{protocol::MarkReason::kAborted}
+      : kind == FaultKind::kCamera || kind == FaultKind::kTrackingLost
+          ? std::set{protocol::MarkReason::kTrackingLost}
+          : std::set{protocol::MarkReason::kRobotFault, protocol::MarkReason::kTimeout};
+  for (const auto& m : r.report.marks)
+    if (m.outcome != protocol::MarkOutcome::kMarked) {
+      EXPECT_TRUE(expected.count(m.reason)) << what << ": defect " << m.defect_id << " names the fault";
+    }
+}
+
+// How soon after the injection (simulated time: the station's reaction by design) the
+// valve is closed, the tool still and every defect reported, and that nothing is sprayed
+// once the fault could be seen.
+void expect_time_to_safe(const ScenarioResult& r, FaultKind kind, double t_fault, const std::string& what) {
+  const auto no_spray_after = [&](double t) {
+    for (const auto& e : r.errors) EXPECT_LT(e.t_spray, t) << what << ": spray too late";
+  };
+  switch (kind) {
+    case FaultKind::kDaemonKill:
+      // The kill ends the valve line's request: the valve closes at once. The robot
+      // hears no heartbeat and its watchdog stops it; the restarted daemon reports
+      // every defect not marked before the kill failed / aborted.
+      no_spray_after(t_fault);
+      EXPECT_LE(r.valve_closed_after, 0.0) << what;
+      EXPECT_LE(r.robot_still_after, kRobotWatchdog + kBrakingTime) << what;
+      EXPECT_GE(r.reported_after, kRestartAfter - 1e-3) << what << ": only the restarted daemon reports";
+      EXPECT_LE(r.reported_after, kRestartAfter + 0.05) << what;
+      return;
+    case FaultKind::kCamera:
+      // Dead cameras show at the next frame (its grab fails); the job goes safe at the
+      // next interlock check, cutting a spray short: valve closed, robot stopped and
+      // every defect reported within 50 ms of that.
+      ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
+      EXPECT_LE(r.detected_after, kFramePeriod + 0.05) << what;
+      no_spray_after(t_fault + kFramePeriod);
+      EXPECT_LE(r.valve_closed_after, r.detected_after + 0.05) << what;
+      EXPECT_LE(r.robot_still_after, r.detected_after + kBrakingTime + 0.05) << what;
+      EXPECT_LE(r.reported_after, r.detected_after + 0.05) << what;
+      return;
+    case FaultKind::kTrackingLost: {
+      // A panel out of view shows once the next frame is tracked; a tool moving
+      // towards the panel is stopped at the next poll, and no spray starts after that.
+      const double seen = kFramePeriod + kFrameProcessing;
+      ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
+      no_spray_after(t_fault + seen + 0.01);
+      EXPECT_LE(r.valve_closed_after, seen + kPulse + 0.05) << what;
+      EXPECT_LE(r.robot_still_after, seen + std::max(kBrakingTime, kPulse + kRetract) + 0.05) << what;
+      EXPECT_LE(r.reported_after, seen + kPulse + kRetract + kTrackingTimeout + 0.05) << what;
+      return;
+    }
+    default:
+      // The e-stop closes the valve on its edge; a robot fault or a dead link is seen
+      // at the next robot exchange (poll period) and the valve closes then. A dead link
+      // leaves the robot to its own watchdog and braking.
+      no_spray_after(t_fault + 0.05);
+      EXPECT_LE(r.valve_closed_after, kind == FaultKind::kEstop ? 0.010 : 0.050) << what;
+      EXPECT_LE(r.robot_still_after,
+                kind == FaultKind::kRobotLink ? kRobotWatchdog + kBrakingTime : kBrakingTime)
+          << what;
+      EXPECT_LE(r.reported_after, 0.050) << what;
+  }
+}
+
 TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
   SKIP_UNDER_EMULATION();
   const SimulatedDoor d = door(6, 4);
@@ -228,63 +295,8 @@ TEST(StationSim, EveryFaultEndsSafeWithEveryDefectReported) {
           continue;
         }
         EXPECT_LT(r.marked, 4) << what;
-        const std::set<protocol::MarkReason> expected =
-            kind == FaultKind::kEstop        ? std::set{protocol::MarkReason::kEmergencyStop}
-            : kind == FaultKind::kDaemonKill ? std::set{protocol::MarkReason::kAborted}
-            : cameras                        ? std::set{protocol::MarkReason::kTrackingLost}
-                      : std::set{protocol::MarkReason::kRobotFault, protocol::MarkReason::kTimeout};
-        for (const auto& m : r.report.marks)
-          if (m.outcome != protocol::MarkOutcome::kMarked) {
-            EXPECT_TRUE(expected.count(m.reason)) << what << ": defect " << m.defect_id << " names the fault";
-          }
-        if (kind == FaultKind::kDaemonKill) {
-          // The kill ends the valve line's request: the valve closes at once. The robot
-          // hears no heartbeat and its watchdog stops it; the restarted daemon reports
-          // every defect not marked before the kill failed / aborted.
-          for (const auto& e : r.errors)
-            EXPECT_LT(e.t_spray, at.after) << what << ": no spray after the kill";
-          EXPECT_LE(r.valve_closed_after, 0.0) << what;
-          EXPECT_LE(r.robot_still_after, kRobotWatchdog + kBrakingTime) << what;
-          EXPECT_GE(r.reported_after, kRestartAfter - 1e-3) << what << ": only the restarted daemon reports";
-          EXPECT_LE(r.reported_after, kRestartAfter + 0.05) << what;
-          continue;
-        }
-        if (kind == FaultKind::kCamera) {
-          // Dead cameras show at the next frame (its grab fails); the job goes safe at the
-          // next interlock check, cutting a spray short: valve closed, robot stopped and
-          // every defect reported within 50 ms of that.
-          ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
-          EXPECT_LE(r.detected_after, kFramePeriod + 0.05) << what;
-          for (const auto& e : r.errors)
-            EXPECT_LT(e.t_spray, at.after + kFramePeriod) << what << ": spray too late";
-          EXPECT_LE(r.valve_closed_after, r.detected_after + 0.05) << what;
-          EXPECT_LE(r.robot_still_after, r.detected_after + kBrakingTime + 0.05) << what;
-          EXPECT_LE(r.reported_after, r.detected_after + 0.05) << what;
-          continue;
-        }
-        if (cameras) {
-          // A panel out of view shows once the next frame is tracked; a tool moving
-          // towards the panel is stopped at the next poll, and no spray starts after that.
-          const double seen = kFramePeriod + kFrameProcessing;
-          ASSERT_GE(r.detected_after, 0.0) << what << ": a defect is reported tracking_lost";
-          for (const auto& e : r.errors)
-            EXPECT_LT(e.t_spray, at.after + seen + 0.01) << what << ": spray too late";
-          EXPECT_LE(r.valve_closed_after, seen + kPulse + 0.05) << what;
-          EXPECT_LE(r.robot_still_after, seen + std::max(kBrakingTime, kPulse + kRetract) + 0.05) << what;
-          EXPECT_LE(r.reported_after, seen + kPulse + kRetract + kTrackingTimeout + 0.05) << what;
-          continue;
-        }
-        for (const auto& e : r.errors)
-          EXPECT_LT(e.t_spray, at.after + 0.05) << what << ": no spray after the fault";
-        // Time to safe from the injection (simulated time: the station's reaction by
-        // design). The e-stop closes the valve on its edge; a robot fault or a dead link
-        // is seen at the next robot exchange (poll period) and the valve closes then. A
-        // dead link leaves the robot to its own watchdog (0.5 s) and braking.
-        EXPECT_LE(r.valve_closed_after, kind == FaultKind::kEstop ? 0.010 : 0.050) << what;
-        EXPECT_LE(r.robot_still_after,
-                  kind == FaultKind::kRobotLink ? kRobotWatchdog + kBrakingTime : kBrakingTime)
-            << what;
-        EXPECT_LE(r.reported_after, 0.050) << what;
+        expect_reasons_name_the_fault(r, kind, what);
+        expect_time_to_safe(r, kind, at.after, what);
       }
   }
 }
