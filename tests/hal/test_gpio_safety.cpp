@@ -184,12 +184,15 @@ TEST(SafetySupervisor, WatchdogClosesTheValveWhenTheLoopStalls) {
   SafetySupervisor safety(std::move(lines.sprayer_valve), std::move(lines.estop), c, {0.5, 0.001});
   ASSERT_TRUE(safety.open_valve());
   const double t_open = c.now();
+  double last_kick = t_open;
   for (int i = 0; i < 20; ++i) {  // a healthy loop: kicks every 0.05 s for 1 s
     c.sleep_for(0.05);
+    // Read before the kick: the scaled clock runs on while the kick is taken, and the
+    // watchdog counts from the kick's own time, which is no earlier than this.
+    last_kick = c.now();
     safety.kick();
     ASSERT_TRUE(chip.level("sprayer-valve")) << "closed although kicked, at " << c.now() - t_open;
   }
-  const double last_kick = c.now();
   c.sleep_for(1.0);  // stall
   EXPECT_FALSE(chip.level("sprayer-valve"));
   EXPECT_EQ(safety.reason(), SafeReason::kWatchdog);
