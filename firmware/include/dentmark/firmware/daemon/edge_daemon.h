@@ -76,12 +76,7 @@ class EdgeDaemon {
   std::uint16_t port() const { return server_ ? server_->port() : 0; }
   station::Station& station() { return *station_; }
   station::CameraTracking* cameras() { return cameras_; }  // null with a tracking override
-  hal::Gpio& gpio() { return *gpio_; }
-  hal::Robot& robot() { return *robot_; }
-  hal::SafetySupervisor& safety() { return *supervisor_; }
-  const board::BoardConfig& board() const { return options_.board; }
   const std::filesystem::path& state_dir() const { return options_.state_dir; }
-  const station::StationCalibration& calibration() const { return calibration_; }
   // One line for logs and sd_notify STATUS=.
   std::string describe() const;
 
