@@ -1,5 +1,6 @@
 #include "along_feature.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -19,6 +20,7 @@ constexpr double kFlankStep = 0.002;    // m between flank samples (at least a p
 constexpr double kEdgeReach = 0.012;    // m from the border zone: left alone
 constexpr double kMinDiameter = 0.006;  // m: narrower pieces are the line's own remnants
 constexpr double kTensorSigma = 0.006;  // m: the structure tensor's window
+constexpr double kSlopeSigma = 0.020;   // m: the panel's own slope, taken out of the gradients
 constexpr float kCoherence = 0.5f;      // anisotropy of a line's neighbourhood
 constexpr double kFlankFull = 0.6;      // share of a flank's samples that must be seen
 constexpr double kZoneReach = 0.030;    // m round the design candidates
@@ -39,64 +41,190 @@ float sample(const cv::Mat& dev, double r, double c) {
   return (1 - fr) * ((1 - fc) * a[0] + fc * a[1]) + fr * ((1 - fc) * b[0] + fc * b[1]);
 }
 
-// Both flanks of pixel (r, c) along angle a: their medians' difference, their mean (the
-// profile), and the flanks' robust spread about their medians; false when a flank is
-// under kFlankFull seen.
-struct Flanks {
-  float gap = 0.0f, profile = 0.0f, spread = 0.0f;
+// The surface's profile along angle a through pixel (r, c): a quadratic in the distance
+// along the line, fitted to the heights of both flanks, the samples further than 3 sigma
+// from the first fit left out of the second. The quadratic takes the panel's slope and
+// curvature along the line, which a mean of the flanks would leave in; the pixel's own
+// height is not in the fit, so a defect does not pull it. False when a flank is under
+// kFlankFull seen.
+struct Profile {
+  float at_pixel = 0.0f;  // the fit's height at the pixel (m)
+  float spread = 0.0f;    // kMadToSigma x the median absolute residual of the fit (m)
 };
-bool flanks_at(const cv::Mat& dev, int r, int c, double a, const std::vector<double>& offsets, int need,
-               std::vector<float>& ahead, std::vector<float>& behind, Flanks& f) {
-  ahead.clear(), behind.clear();
-  const double ca = std::cos(a), sa = std::sin(a);
-  for (const double s : offsets) {
-    const float va = sample(dev, r + s * sa, c + s * ca), vb = sample(dev, r - s * sa, c - s * ca);
-    if (std::isfinite(va)) ahead.push_back(va);
-    if (std::isfinite(vb)) behind.push_back(vb);
+struct FlankSample {
+  double s = 0.0;  // m along the line
+  float w = 0.0f;  // height
+};
+bool fit_quadratic(const std::vector<FlankSample>& xs, float cut, double& a0, std::vector<float>& residual) {
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    if (!(std::abs(residual[i]) <= cut)) continue;
+    const Eigen::Vector3d row(1.0, xs[i].s, xs[i].s * xs[i].s);
+    ata += row * row.transpose(), atb += row * static_cast<double>(xs[i].w);
   }
-  if (static_cast<int>(ahead.size()) < need || static_cast<int>(behind.size()) < need) return false;
-  const float ma = median_in_place(ahead), mb = median_in_place(behind);
-  f.gap = std::abs(ma - mb), f.profile = 0.5f * (ma + mb);
-  // Spread: the median absolute offset of both flanks from their own medians.
-  std::vector<float>& d = ahead;
-  for (float& v : d) v = std::abs(v - ma);
-  for (const float v : behind) d.push_back(std::abs(v - mb));
-  f.spread = static_cast<float>(kMadToSigma) * median_in_place(d);
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  const Eigen::Vector3d x = ldlt.solve(atb);
+  for (std::size_t i = 0; i < xs.size(); ++i)
+    residual[i] = static_cast<float>(xs[i].w - (x[0] + x[1] * xs[i].s + x[2] * xs[i].s * xs[i].s));
+  a0 = x[0];
   return true;
+}
+bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector<double>& offsets,
+                double pixel, int need, std::vector<FlankSample>& xs, std::vector<float>& residual,
+                std::vector<float>& scratch, Profile& out) {
+  xs.clear();
+  const double ca = std::cos(a), sa = std::sin(a);
+  int ahead = 0, behind = 0;
+  for (const double s : offsets) {
+    const float va = sample(height, r + s * sa, c + s * ca), vb = sample(height, r - s * sa, c - s * ca);
+    if (std::isfinite(va)) xs.push_back({s * pixel, va}), ++ahead;
+    if (std::isfinite(vb)) xs.push_back({-s * pixel, vb}), ++behind;
+  }
+  if (ahead < need || behind < need) return false;
+  residual.assign(xs.size(), 0.0f);
+  double a0 = 0.0;
+  float sigma = 0.0f;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (!fit_quadratic(xs, pass == 0 ? std::numeric_limits<float>::infinity() : std::max(3.0f * sigma, 1e-6f),
+                       a0, residual))
+      return false;
+    scratch.resize(residual.size());
+    std::transform(residual.begin(), residual.end(), scratch.begin(), [](float v) { return std::abs(v); });
+    sigma = static_cast<float>(kMadToSigma) * median_in_place(scratch);
+  }
+  out.at_pixel = static_cast<float>(a0), out.spread = sigma;
+  return true;
+}
+
+// The map's heights at the pixels' centres (CV_32F, m; NaN where no surface): the plane
+// through the mean points of the pixel and its surface neighbours (3 x 3), at the
+// centre. A pixel's mean point lies anywhere in it, and on a character line's flank
+// (slopes up to 1:3) its height alone is off by up to a sixth of a pixel's size, which
+// along the line reads as a streak of false defects.
+cv::Mat heights_of(const HeightMap& map) {
+  cv::Mat h(map.rows, map.cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+#pragma omp parallel for schedule(static)
+  for (int r = 0; r < map.rows; ++r) {
+    float* hr = h.ptr<float>(r);
+    for (int c = 0; c < map.cols; ++c) {
+      const std::size_t k =
+          static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
+      if (!(map.weight[k] > 0.0f)) continue;
+      const double uc = map.u0 + (c + 0.5) * map.pixel, vc = map.v0 + (r + 0.5) * map.pixel;
+      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+      for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
+        for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
+          const std::size_t q = static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) +
+                                static_cast<std::size_t>(cc);
+          if (!(map.weight[q] > 0.0f)) continue;
+          const Eigen::Vector3d row(1.0, (map.u[q] - uc) / map.pixel, (map.v[q] - vc) / map.pixel);
+          ata += row * row.transpose(), atb += row * static_cast<double>(map.w[q]);
+        }
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+      // Too few neighbours for a plane (a lone pixel, a line of them): its own height.
+      hr[c] = ldlt.info() == Eigen::Success && ldlt.rcond() > 1e-3 ? static_cast<float>(ldlt.solve(atb)[0])
+                                                                   : map.w[k];
+    }
+  }
+  return h;
+}
+
+// The flank samples' distances from the pixel along the line (pixels, one flank).
+std::vector<double> flank_offsets(double pixel) {
+  const double step = std::max(kFlankStep, pixel);
+  std::vector<double> offsets;
+  for (double s = kFlankNear; s <= kFlankFar + 1e-9; s += step) offsets.push_back(s / pixel);
+  return offsets;
+}
+
+// The noise of m (CV_32F) along the feature through each pixel that has a direction
+// (angle, NaN: none): the robust sigma of m at the flank samples (NaN where under half of
+// them are seen). On a line's steep flank the heights' small errors repeat along the line
+// with the pixel grid's phase; this is how large they are there.
+cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
+  const std::vector<double> offsets = flank_offsets(pixel);
+  cv::Mat out(m.rows, m.cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+#pragma omp parallel
+  {
+    std::vector<double> v;
+#pragma omp for schedule(dynamic, 8)
+    for (int r = 0; r < m.rows; ++r)
+      for (int c = 0; c < m.cols; ++c) {
+        const float a = angle.at<float>(r, c);
+        if (!std::isfinite(a)) continue;
+        v.clear();
+        const double ca = std::cos(a), sa = std::sin(a);
+        for (const double s : offsets)
+          for (const double sign : {1.0, -1.0})
+            if (const float x = sample(m, r + sign * s * sa, c + sign * s * ca); std::isfinite(x))
+              v.push_back(std::abs(x));
+        if (v.size() >= offsets.size()) out.at<float>(r, c) = static_cast<float>(robust_sigma(v));
+      }
+  }
+  return out;
+}
+
+// The robust sigma of the finite values of m (CV_32F) on the pixels set in zone: the
+// noise of a residual whose defects are few.
+double noise_in(const cv::Mat& m, const cv::Mat& zone) {
+  std::vector<double> v;
+  for (int k = 0; k < m.rows * m.cols; ++k)
+    if (const float x = m.ptr<float>()[k]; zone.data[k] && std::isfinite(x)) v.push_back(std::abs(x));
+  return v.empty() ? 0.0 : robust_sigma(std::move(v));
 }
 
 }  // namespace
 
-AlongFeature along_feature_residual(const cv::Mat& dev, const cv::Mat& zone, double pixel) {
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
+                                    const cv::Mat& blocked) {
   const int rows = dev.rows, cols = dev.cols;
+  const double pixel = map.pixel;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  AlongFeature out{cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)),
+  AlongFeature out{cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)),
                    cv::Mat(rows, cols, CV_32F, cv::Scalar(nan))};
-  const double step = std::max(kFlankStep, pixel);
-  std::vector<double> offsets;  // pixels along the direction, one flank
-  for (double s = kFlankNear; s <= kFlankFar + 1e-9; s += step) offsets.push_back(s / pixel);
+  const std::vector<double> offsets = flank_offsets(pixel);
   const int n = static_cast<int>(offsets.size());
   const int need = static_cast<int>(std::ceil(kFlankFull * n));
-  // The structure tensor of the deviation over a Gaussian of kTensorSigma.
-  cv::Mat d0 = dev.clone();
-  cv::patchNaNs(d0, 0.0);
-  cv::Mat gx, gy;
-  cv::Sobel(d0, gx, CV_32F, 1, 0, 3);
-  cv::Sobel(d0, gy, CV_32F, 0, 1, 3);
+  const cv::Mat height = heights_of(map);
+  cv::Mat flank = height.clone();  // the heights the profiles are fitted to
+  flank.setTo(std::numeric_limits<float>::quiet_NaN(), blocked);
+  // The direction of a feature: the structure tensor, over a Gaussian of kTensorSigma, of
+  // the heights' gradient less its mean over kSlopeSigma (the panel's own slope, which
+  // would otherwise outweigh a shallow line).
+  // Only gradients whose 3 x 3 neighbourhood is all surface count: an empty pixel's
+  // height is no height at all.
+  cv::Mat h0 = height.clone(), seen = (height == height), whole;
+  cv::patchNaNs(h0, 0.0);
+  cv::erode(seen, whole, cv::Mat());
+  cv::Mat gx, gy, mx, my, weight, wsum;
+  cv::Sobel(h0, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(h0, gy, CV_32F, 0, 1, 3);
+  whole.convertTo(weight, CV_32F, 1.0 / 255.0);
+  gx = gx.mul(weight), gy = gy.mul(weight);
+  const cv::Size any(0, 0);
+  cv::GaussianBlur(weight, wsum, any, kSlopeSigma / pixel);
+  cv::GaussianBlur(gx, mx, any, kSlopeSigma / pixel);
+  cv::GaussianBlur(gy, my, any, kSlopeSigma / pixel);
+  wsum = cv::max(wsum, 1e-3f);
+  gx -= mx.mul(weight) / wsum, gy -= my.mul(weight) / wsum;
   cv::Mat jx = gx.mul(gx), jy = gy.mul(gy), jxy_ = gx.mul(gy);
   const double sg = kTensorSigma / pixel;
   for (cv::Mat* m : {&jx, &jy, &jxy_}) cv::GaussianBlur(*m, *m, cv::Size(0, 0), sg);
 #pragma omp parallel
   {
-    std::vector<float> ahead, behind;
-    ahead.reserve(static_cast<std::size_t>(2 * n)), behind.reserve(static_cast<std::size_t>(n));
+    std::vector<FlankSample> xs;
+    std::vector<float> residual, scratch;
+    xs.reserve(static_cast<std::size_t>(2 * n));
 #pragma omp for schedule(dynamic, 8)
     for (int r = 0; r < rows; ++r) {
       const std::uint8_t* zr = zone.ptr<std::uint8_t>(r);
       for (int c = 0; c < cols; ++c) {
-        const float here = dev.at<float>(r, c);
-        if (!zr[c] || !std::isfinite(here)) continue;
-        // Along the feature: across the deviation's dominant gradient, where that is
+        const float here = dev.at<float>(r, c), h = height.at<float>(r, c);
+        if (!zr[c] || !std::isfinite(here) || !std::isfinite(h)) continue;
+        // Along the feature: across the heights' dominant gradient, where that is
         // clearly one direction; elsewhere there is no line to take out.
         const float jxx = jx.at<float>(r, c), jyy = jy.at<float>(r, c), jxy = jxy_.at<float>(r, c);
         const float tr = jxx + jyy;
@@ -107,74 +235,95 @@ AlongFeature along_feature_residual(const cv::Mat& dev, const cv::Mat& zone, dou
           continue;
         }
         double best_a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
-        Flanks best{std::numeric_limits<float>::infinity(), 0.0f, 0.0f}, f;
-        if (flanks_at(dev, r, c, best_a, offsets, need, ahead, behind, f)) best = f;
-        // Refine the direction: halving steps round it, down to a quarter degree.
+        Profile best{0.0f, std::numeric_limits<float>::infinity()}, f;
+        if (profile_at(flank, r, c, best_a, offsets, pixel, need, xs, residual, scratch, f)) best = f;
+        // Refine the direction: halving steps round it, down to a quarter degree, to the
+        // one along which the profile fits best.
         for (double da = 0.05; da > 0.004; da /= 2) {
           const double a0 = best_a;
           for (const double a : {a0 - da, a0 + da})
-            if (flanks_at(dev, r, c, a, offsets, need, ahead, behind, f) && f.gap < best.gap)
+            if (profile_at(flank, r, c, a, offsets, pixel, need, xs, residual, scratch, f) &&
+                f.spread < best.spread)
               best = f, best_a = a;
         }
-        if (!std::isfinite(best.gap)) continue;
-        out.residual.at<float>(r, c) = here - best.profile;
-        out.spread.at<float>(r, c) = best.spread;
+        if (!std::isfinite(best.spread)) continue;
+        const std::size_t k =
+            static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
+        out.residual.at<float>(r, c) = (h - best.at_pixel) * map.cos_tilt[k];
+        out.angle.at<float>(r, c) = static_cast<float>(best_a);
+        out.spread.at<float>(r, c) = best.spread * map.cos_tilt[k];
       }
     }
   }
   return out;
 }
 
-std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const DetectConfig& cfg,
-                                            std::vector<std::vector<std::int32_t>>& pixels) {
-  const HeightMap& map = s.map;
-  const int rows = map.rows, cols = map.cols;
-  std::vector<Finding> out;
-  if (cv::countNonZero(s.design) == 0) return out;
-  const int reach = std::max(1, static_cast<int>(std::lround(kZoneReach / map.pixel)));
-  cv::Mat zone;
-  cv::dilate(s.design, zone,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)));
-  // Not where a line meets the border: the border's own band crosses its flanks there.
-  cv::Mat near_edge;
-  const int edge_reach = std::max(1, static_cast<int>(std::lround(kEdgeReach / map.pixel)));
-  cv::dilate(s.edge_zone, near_edge,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * edge_reach + 1, 2 * edge_reach + 1)));
-  zone &= ~near_edge;
-  const AlongFeature along = along_feature_residual(s.dev, zone, map.pixel);
-  const cv::Mat& resid = along.residual;
+namespace {
+
+// The residual's candidate pixels (cand: CV_8U, 255 where some detection scale's mean of
+// it passes its threshold), the finest scale's mean, and that scale's noise.
+struct ResidualCandidates {
+  cv::Mat cand, finest;
+  double finest_sigma = 0.0;
+};
+ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFeatureScene& s,
+                                       const cv::Mat& zone, const cv::Mat& blocked, const DetectConfig& cfg) {
+  const int rows = s.map.rows, cols = s.map.cols;
   // The detection scales' means of the residual and their thresholds (deviation.h).
   cv::Mat values(rows, cols, CV_32F), weights(rows, cols, CV_32F);
   for (int k = 0; k < rows * cols; ++k) {
-    const float v = resid.ptr<float>()[k];
+    const float v = along.residual.ptr<float>()[k];
     const bool ok = std::isfinite(v) && !s.excluded.data[k];
     values.ptr<float>()[k] = ok ? v : 0.0f;
     weights.ptr<float>()[k] = ok ? 1.0f : 0.0f;
   }
-  cv::Mat cand(rows, cols, CV_8U, cv::Scalar(0)), finest;
+  ResidualCandidates out{cv::Mat(rows, cols, CV_8U, cv::Scalar(0)), cv::Mat(), s.sigma3};
+  cv::Mat local;  // the finest scale's noise along the feature
   for (std::size_t i = 0; i < s.scales.size(); ++i) {
     cv::Mat mean;
     const int k = s.scales[i];
     box_mean(values, weights, k, 0.3f * static_cast<float>(k * k), mean);
-    const auto thr =
-        static_cast<float>(std::max(cfg.detection_sigma * s.scale_sigma[i], 0.5 * cfg.min_height));
+    // The residual's own noise at this scale: the profile's error is shared by
+    // neighbouring pixels (their flanks overlap), so it does not average out as the
+    // deviation's noise does.
+    const double sigma = std::max(s.scale_sigma[i], noise_in(mean, zone));
+    const auto thr = static_cast<float>(std::max(cfg.detection_sigma * sigma, 0.5 * cfg.min_height));
+    if (i == 0) {
+      cv::Mat seen = mean.clone();
+      seen.setTo(std::numeric_limits<float>::quiet_NaN(), blocked);
+      local = noise_along(seen, along.angle, s.map.pixel);
+    }
+    const auto local_sigmas = static_cast<float>(cfg.detection_sigma);
     for (int q = 0; q < rows * cols; ++q) {
       const float m = mean.ptr<float>()[q];
       // Where the flanks themselves spread (the steep part of a line that bends, a
-      // handle's corner) the profile is uncertain by as much.
-      const float t = std::max(thr, kSpreadSigmas * along.spread.ptr<float>()[q]);
-      if (std::abs(m) > t && zone.data[q] && !s.excluded.data[q]) cand.data[q] = 255;  // NaN: false
+      // handle's corner) the profile is uncertain by as much; and where the residual
+      // itself varies along the line, by as much as it does.
+      const float lq = local.ptr<float>()[q];
+      const float t = std::max(
+          {thr, kSpreadSigmas * along.spread.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
+      if (std::abs(m) > t && zone.data[q] && !s.excluded.data[q]) out.cand.data[q] = 255;  // NaN: false
     }
-    if (i == 0) finest = mean;
+    if (i == 0) out.finest = mean, out.finest_sigma = std::max(s.sigma3, sigma);
   }
+  return out;
+}
+
+// The candidates' connected pieces that have the shape and height of a defect, away
+// from defects already reported, as findings with their pixels.
+std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatureScene& s,
+                                 const DetectConfig& cfg, std::vector<std::vector<std::int32_t>>& pixels) {
+  const HeightMap& map = s.map;
+  const int rows = map.rows, cols = map.cols;
+  const cv::Mat& finest = rc.finest;
+  std::vector<Finding> out;
   cv::Mat lab;
-  const int n = cv::connectedComponents(cand, lab, 8, CV_32S);
+  const int n = cv::connectedComponents(rc.cand, lab, 8, CV_32S);
   std::vector<std::vector<std::int32_t>> comps(static_cast<std::size_t>(n));
   for (int q = 0; q < rows * cols; ++q)
     if (const int l = lab.ptr<int>()[q]; l > 0) comps[static_cast<std::size_t>(l)].push_back(q);
   for (int l = 1; l < n; ++l) {
     std::vector<std::int32_t>& px = comps[static_cast<std::size_t>(l)];
-    // Away from defects already reported.
     if (std::any_of(px.begin(), px.end(),
                     [&](std::int32_t q) { return s.labels[static_cast<std::size_t>(q)] >= 0; }))
       continue;
@@ -186,7 +335,7 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       const float m = finest.ptr<float>()[q];
       if (std::isfinite(m) && std::abs(m) > std::abs(peak)) peak = m;
     }
-    const double snr = std::abs(peak) / std::max(s.sigma3, 1e-9);
+    const double snr = std::abs(peak) / std::max(rc.finest_sigma, 1e-9);
     if (std::abs(peak) < cfg.min_height || snr < cfg.detection_sigma) continue;
     double sw = 0.0, su = 0.0, sv = 0.0, swz = 0.0;
     int half = 0;
@@ -219,6 +368,37 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
     pixels.push_back(std::move(px));
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const DetectConfig& cfg,
+                                            std::vector<std::vector<std::int32_t>>& pixels) {
+  const HeightMap& map = s.map;
+  if (cv::countNonZero(s.design) == 0) return {};
+  const int reach = std::max(1, static_cast<int>(std::lround(kZoneReach / map.pixel)));
+  cv::Mat zone;
+  cv::dilate(s.design, zone,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)));
+  // Not where a line meets the border: the border's own band crosses its flanks there.
+  cv::Mat near_edge;
+  const int edge_reach = std::max(1, static_cast<int>(std::lround(kEdgeReach / map.pixel)));
+  cv::dilate(s.edge_zone, near_edge,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * edge_reach + 1, 2 * edge_reach + 1)));
+  zone &= ~near_edge;
+  // A defect in a pixel's flanks lifts or lowers its profile and leaves a ghost of the
+  // other sign 13-45 mm along the line each side of it. So the first pass's findings
+  // leave the flanks of the second.
+  const AlongFeature first = along_feature_residual(map, s.dev, zone, near_edge);
+  cv::Mat blocked(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  std::vector<std::vector<std::int32_t>> first_px;
+  findings_of(residual_candidates(first, s, zone, near_edge, cfg), s, cfg, first_px);
+  for (const auto& px : first_px)
+    for (const std::int32_t q : px) blocked.data[q] = 255;
+  cv::dilate(blocked, blocked, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  blocked |= near_edge;
+  const AlongFeature along = along_feature_residual(map, s.dev, zone, blocked);
+  return findings_of(residual_candidates(along, s, zone, blocked, cfg), s, cfg, pixels);
 }
 
 }  // namespace dentmark::detect

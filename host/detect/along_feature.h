@@ -30,8 +30,10 @@ namespace dentmark::detect {
 // where either flank has under 60 % of its samples. pixel: the map's pixel size (m).
 struct AlongFeature {
   cv::Mat residual, spread;  // CV_32F, m
+  cv::Mat angle;  // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
 };
-AlongFeature along_feature_residual(const cv::Mat& dev, const cv::Mat& zone, double pixel);
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
+                                    const cv::Mat& blocked);
 
 // What the scene around a design feature offers the search for local defects.
 struct AlongFeatureScene {

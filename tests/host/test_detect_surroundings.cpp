@@ -124,6 +124,51 @@ TEST(Detect, DefectsBesideASharpFoldAreFoundAndTheFoldIsNot) {
   EXPECT_TRUE(fold_seen);
 }
 
+TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
+  // A character line as a stamping leaves it: a 3 mm step rising smoothly over 12 mm, at
+  // 30° across the map, 0.5 mm and 15 µm, with dents and bumps on it and 6-9 mm (rim to
+  // the step's footprint) beside it. The reference follows the step only roughly and
+  // leaves a band along it; each of these defects is a deviation from the line's own
+  // profile along its length (along_features).
+  const Eigen::Vector2d along(std::cos(0.52), std::sin(0.52)), across(-along.y(), along.x());
+  const Eigen::Vector2d centre(0.15, 0.10);
+  constexpr double kStep = 0.003, kWidth = 0.012;
+  struct Planted {
+    double s, t, diameter, height;  // along and across the line from the centre (m)
+  };
+  const Planted planted[] = {{-0.08, 0.0, 0.016, -3e-4},
+                             {-0.02, 0.0, 0.014, 2e-4},
+                             {0.05, 0.006 + 0.010 + 0.006, 0.020, -2e-4},
+                             {0.10, -(0.006 + 0.007 + 0.009), 0.014, 2.5e-4}};
+  const auto height_at = [&](double x, double y) {
+    const Eigen::Vector2d p = Eigen::Vector2d(x, y) - centre;
+    const double t = p.dot(across);
+    double z = t <= -0.5 * kWidth  ? 0.0
+               : t >= 0.5 * kWidth ? kStep
+                                   : kStep * 0.5 * (1.0 + std::sin(std::numbers::pi * t / kWidth));
+    for (const Planted& d : planted) {
+      const double r = (p - d.s * along - d.t * across).norm();
+      if (r < 0.5 * d.diameter) z += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+    }
+    return -z;  // towards the sensor at the origin: the line stands up, a bump is less deep
+  };
+  const ingest::Mesh patch = noisy_patch(601, 401, 0.0005, height_at, 23);
+  detect::DetectConfig cfg;
+  cfg.along_features = true;
+  const detect::Detection det = detect::detect(patch, cfg);
+  for (const Planted& d : planted) {
+    const Eigen::Vector2d at = centre + d.s * along + d.t * across;
+    const auto found = std::find_if(det.defects.begin(), det.defects.end(), [&](const auto& f) {
+      return (f.defect.position.template head<2>() - at).norm() < 0.003;
+    });
+    ASSERT_NE(found, det.defects.end()) << "defect " << d.t * 1e3 << " mm from the line";
+    EXPECT_EQ(found->defect.defect_class,
+              d.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump);
+    EXPECT_NEAR(found->defect.height, d.height, 0.25 * std::abs(d.height)) << "at " << d.t * 1e3 << " mm";
+  }
+  EXPECT_EQ(det.defects.size(), std::size(planted));
+}
+
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
   // The wall surrounded the panel on the map, a step of half a metre behind it, and
   // showed through every pixel the panel left empty: here 1 of the 5 defects was lost and
