@@ -50,6 +50,7 @@ float sample(const cv::Mat& dev, double r, double c) {
 struct Profile {
   float at_pixel = 0.0f;  // the fit's height at the pixel (m)
   float spread = 0.0f;    // kMadToSigma x the median absolute residual of the fit (m)
+  float gap = 0.0f;       // how far apart the two flanks' own lines pass the pixel (m)
 };
 struct FlankSample {
   double s = 0.0;  // m along the line
@@ -70,6 +71,20 @@ bool fit_quadratic(const std::vector<FlankSample>& xs, float cut, double& a0, st
     residual[i] = static_cast<float>(xs[i].w - (x[0] + x[1] * xs[i].s + x[2] * xs[i].s * xs[i].s));
   a0 = x[0];
   return true;
+}
+// The least-squares line through one flank's samples (side: +1 ahead, -1 behind) whose
+// residual is within cut, at the pixel (s = 0); NaN with under 2 of them.
+double flank_line_at_pixel(const std::vector<FlankSample>& xs, const std::vector<float>& residual, float cut,
+                           double side) {
+  double n = 0.0, ss = 0.0, sw = 0.0, sss = 0.0, ssw = 0.0;
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    if (xs[i].s * side <= 0.0 || !(std::abs(residual[i]) <= cut)) continue;
+    const double x = xs[i].s, y = xs[i].w;
+    n += 1.0, ss += x, sw += y, sss += x * x, ssw += x * y;
+  }
+  const double det = n * sss - ss * ss;
+  if (n < 2.0 || !(det > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return (sw * sss - ss * ssw) / det;
 }
 bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector<double>& offsets,
                 double pixel, int need, std::vector<FlankSample>& xs, std::vector<float>& residual,
@@ -94,8 +109,13 @@ bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector
     std::transform(residual.begin(), residual.end(), scratch.begin(), [](float v) { return std::abs(v); });
     sigma = static_cast<float>(kMadToSigma) * median_in_place(scratch);
   }
+  // Each flank's own line, at the pixel: where the flanks disagree (a handle's end, a
+  // line that bends or stops) the profile through the pixel is uncertain by as much.
+  const float cut = std::max(3.0f * sigma, 1e-6f);
   out.at_pixel = static_cast<float>(a0), out.spread = sigma;
-  return true;
+  out.gap = static_cast<float>(
+      std::abs(flank_line_at_pixel(xs, residual, cut, 1.0) - flank_line_at_pixel(xs, residual, cut, -1.0)));
+  return std::isfinite(out.gap);
 }
 
 // The map's heights at the pixels' centres (CV_32F, m; NaN where no surface): the plane
@@ -231,7 +251,7 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
         const float aniso = std::sqrt((jxx - jyy) * (jxx - jyy) + 4 * jxy * jxy);
         if (!(tr > 0.0f) || aniso < kCoherence * tr) {
           out.residual.at<float>(r, c) = here;
-          out.spread.at<float>(r, c) = 0.0f;
+          out.uncertainty.at<float>(r, c) = 0.0f;
           continue;
         }
         double best_a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
@@ -251,7 +271,7 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
             static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
         out.residual.at<float>(r, c) = (h - best.at_pixel) * map.cos_tilt[k];
         out.angle.at<float>(r, c) = static_cast<float>(best_a);
-        out.spread.at<float>(r, c) = best.spread * map.cos_tilt[k];
+        out.uncertainty.at<float>(r, c) = std::max(kSpreadSigmas * best.spread, best.gap) * map.cos_tilt[k];
       }
     }
   }
@@ -296,12 +316,12 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
     const auto local_sigmas = static_cast<float>(cfg.detection_sigma);
     for (int q = 0; q < rows * cols; ++q) {
       const float m = mean.ptr<float>()[q];
-      // Where the flanks themselves spread (the steep part of a line that bends, a
-      // handle's corner) the profile is uncertain by as much; and where the residual
-      // itself varies along the line, by as much as it does.
+      // Where the flanks spread or disagree (the steep part of a line that bends, a
+      // handle's end) the profile is uncertain by as much; and where the residual itself
+      // varies along the line, by as much as it does.
       const float lq = local.ptr<float>()[q];
-      const float t = std::max(
-          {thr, kSpreadSigmas * along.spread.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
+      const float t =
+          std::max({thr, along.uncertainty.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
       if (std::abs(m) > t && zone.data[q] && !s.excluded.data[q]) out.cand.data[q] = 255;  // NaN: false
     }
     if (i == 0) out.finest = mean, out.finest_sigma = std::max(s.sigma3, sigma);

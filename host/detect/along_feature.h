@@ -4,16 +4,30 @@
 //
 // A reference surface cannot follow such a feature: it leaves a band in the deviation in
 // which a dent beside the line merges with the line's own candidate and is taken for part
-// of the design. The band is the same all along the line, a defect is not. So each pixel
-// near the feature takes out the deviation's own profile along the line: the mean of the
-// medians of the deviation 13-45 mm ahead of it and 13-45 mm behind it. The direction is
-// across the deviation's dominant gradient (its structure tensor over 6 mm), refined to a
-// quarter degree where ahead and behind agree best; where the gradients have no dominant
-// direction there is no line and nothing is taken out. Candidates are thresholded at the
-// detection scales' thresholds and at 4 times the flanks' own spread.
+// of the design. Along the line the surface is smooth, a defect is not. So each pixel near
+// the feature is compared with the surface's own profile along the line, from the map's
+// heights and not from the reference, whose errors along a smooth step come in blocks:
+//  - heights at the pixels' centres (a plane through the 3 x 3 mean points), since on a
+//    line's steep flank a pixel's mean point alone is off by up to a sixth of a pixel;
+//  - the direction across the heights' dominant gradient (less the panel's own slope over
+//    20 mm; the structure tensor over 6 mm), refined to a quarter degree to where the
+//    profile fits best;
+//  - the profile: a quadratic in the distance along the line through the heights 13-45 mm
+//    ahead and behind (the panel's slope and curvature along the line), fitted twice,
+//    leaving out samples past 3 sigma; it is uncertain by 4 times the fit's spread or by
+//    how far apart the two flanks' own lines pass the pixel, whichever is larger (a
+//    handle's end, a line that stops);
+//  - where no direction dominates, the deviation itself.
+// Candidates pass the detection scales' thresholds (from the residual's own noise, which
+// neighbouring pixels share), the profile's uncertainty, and detection_sigma times the
+// residual's spread along the line through them (a steep flank's small errors repeat
+// with the pixel grid's phase). A defect in a pixel's flanks leaves a ghost of the other
+// sign 13-45 mm along the line each side of it, so the search runs twice, the first
+// run's findings left out of the second's flanks.
 //
-// Off by default (DetectConfig::along_features): the reference leaves blocks and streaks
-// along a smooth step, which come out of this as false alarms (docs/detection.md §12).
+// Off by default (DetectConfig::along_features): it finds 95 % or more of the defects
+// beside and on features, but raises about 13 false alarms per m², most along the panel's
+// border and where a feature ends (docs/detection.md §12).
 
 #include <opencv2/core/mat.hpp>
 #include <vector>
@@ -24,13 +38,14 @@
 
 namespace dentmark::detect {
 
-// The deviation dev (CV_32F, m, NaN where none) with the profile along the feature taken
-// out (residual), and how much the flanks spread about their medians (spread: 1.4826 x
-// their median absolute offset), on the pixels set in zone (CV_8U); NaN elsewhere, and
-// where either flank has under 60 % of its samples. pixel: the map's pixel size (m).
+// The map's heights less their profile along the feature (residual, along the normal),
+// on the pixels set in zone (CV_8U); where no direction dominates, dev (CV_32F deviation,
+// m) instead; NaN elsewhere, and where either flank has under 60 % of its samples seen.
+// Pixels set in blocked (CV_8U) are never flank samples.
 struct AlongFeature {
-  cv::Mat residual, spread;  // CV_32F, m
-  cv::Mat angle;  // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
+  cv::Mat residual;     // CV_32F, m
+  cv::Mat uncertainty;  // CV_32F, m: how far off the profile may be at the pixel
+  cv::Mat angle;        // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
 };
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
                                     const cv::Mat& blocked);
