@@ -409,15 +409,26 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
   // A defect in a pixel's flanks lifts or lowers its profile and leaves a ghost of the
   // other sign 13-45 mm along the line each side of it. So the first pass's findings
   // leave the flanks of the second.
-  const AlongFeature first = along_feature_residual(map, s.dev, zone, near_edge);
-  cv::Mat blocked(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  AlongFeature along = along_feature_residual(map, s.dev, zone, near_edge);
+  cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
   std::vector<std::vector<std::int32_t>> first_px;
-  findings_of(residual_candidates(first, s, zone, near_edge, cfg), s, cfg, first_px);
+  findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, cfg, first_px);
   for (const auto& px : first_px)
-    for (const std::int32_t q : px) blocked.data[q] = 255;
-  cv::dilate(blocked, blocked, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-  blocked |= near_edge;
-  const AlongFeature along = along_feature_residual(map, s.dev, zone, blocked);
+    for (const std::int32_t q : px) found.data[q] = 255;
+  cv::dilate(found, found, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  const cv::Mat blocked = found | near_edge;
+  // Only pixels with a finding within a flank's reach see their flanks change.
+  const int flank_reach = static_cast<int>(std::ceil(kFlankFar / map.pixel));
+  cv::Mat again;
+  cv::dilate(found, again,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
+  again &= zone;
+  if (cv::countNonZero(again) > 0) {
+    const AlongFeature second = along_feature_residual(map, s.dev, again, blocked);
+    second.residual.copyTo(along.residual, again);
+    second.uncertainty.copyTo(along.uncertainty, again);
+    second.angle.copyTo(along.angle, again);
+  }
   return findings_of(residual_candidates(along, s, zone, blocked, cfg), s, cfg, pixels);
 }
 
