@@ -293,7 +293,9 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
   cv::Mat values(rows, cols, CV_32F), weights(rows, cols, CV_32F);
   for (int k = 0; k < rows * cols; ++k) {
     const float v = along.residual.ptr<float>()[k];
-    const bool ok = std::isfinite(v) && !s.excluded.data[k];
+    // Off the profile by more than a hole is deep: a feature's own shape (a handle's end,
+    // its top), never a dent's.
+    const bool ok = std::abs(v) <= cfg.hole_depth && !s.excluded.data[k];  // NaN: false
     values.ptr<float>()[k] = ok ? v : 0.0f;
     weights.ptr<float>()[k] = ok ? 1.0f : 0.0f;
   }
@@ -322,7 +324,7 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
       const float lq = local.ptr<float>()[q];
       const float t =
           std::max({thr, along.uncertainty.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
-      if (std::abs(m) > t && zone.data[q] && !s.excluded.data[q]) out.cand.data[q] = 255;  // NaN: false
+      if (std::abs(m) > t && weights.ptr<float>()[q] > 0.0f && zone.data[q]) out.cand.data[q] = 255;  // NaN: false
     }
     if (i == 0) out.finest = mean, out.finest_sigma = std::max(s.sigma3, sigma);
   }
