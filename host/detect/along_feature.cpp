@@ -17,6 +17,8 @@ namespace {
 constexpr double kFlankNear = 0.013;    // m: flanks start past a 26 mm defect's radius
 constexpr double kFlankFar = 0.045;     // m
 constexpr double kFlankStep = 0.002;    // m between flank samples (at least a pixel)
+constexpr double kWallSlope = 0.8;     // steeper than a character line's flank (up to ~0.5)
+constexpr double kWallReach = 0.003;   // m round a wall: its rounded rims
 constexpr double kEdgeReach = 0.012;    // m from the border zone: left alone
 constexpr double kMinDiameter = 0.006;  // m: narrower pieces are the line's own remnants
 constexpr double kTensorSigma = 0.006;  // m: the structure tensor's window
@@ -230,6 +232,15 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
   cv::GaussianBlur(gy, my, any, kSlopeSigma / pixel);
   wsum = cv::max(wsum, 1e-3f);
   gx -= mx.mul(weight) / wsum, gy -= my.mul(weight) / wsum;
+  // Walls (a handle's sides and ends, steeper than any character line's flank) are no
+  // skin: not looked at, and not in any profile. (A Sobel reads 8 pixels x the slope.)
+  cv::Mat slope, wall;
+  cv::magnitude(gx, gy, slope);
+  cv::compare(slope, kWallSlope * 8.0 * pixel, wall, cv::CMP_GT);
+  const int wall_reach = std::max(1, static_cast<int>(std::lround(kWallReach / pixel)));
+  cv::dilate(wall, wall,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * wall_reach + 1, 2 * wall_reach + 1)));
+  flank.setTo(std::numeric_limits<float>::quiet_NaN(), wall);
   cv::Mat jx = gx.mul(gx), jy = gy.mul(gy), jxy_ = gx.mul(gy);
   const double sg = kTensorSigma / pixel;
   for (cv::Mat* m : {&jx, &jy, &jxy_}) cv::GaussianBlur(*m, *m, cv::Size(0, 0), sg);
@@ -243,7 +254,7 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
       const std::uint8_t* zr = zone.ptr<std::uint8_t>(r);
       for (int c = 0; c < cols; ++c) {
         const float here = dev.at<float>(r, c), h = height.at<float>(r, c);
-        if (!zr[c] || !std::isfinite(here) || !std::isfinite(h)) continue;
+        if (!zr[c] || !std::isfinite(here) || !std::isfinite(h) || wall.at<std::uint8_t>(r, c)) continue;
         // Along the feature: across the heights' dominant gradient, where that is
         // clearly one direction; elsewhere there is no line to take out.
         const float jxx = jx.at<float>(r, c), jyy = jy.at<float>(r, c), jxy = jxy_.at<float>(r, c);
