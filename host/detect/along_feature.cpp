@@ -93,13 +93,17 @@ bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector
                 std::vector<float>& scratch, Profile& out) {
   xs.clear();
   const double ca = std::cos(a), sa = std::sin(a);
-  int ahead = 0, behind = 0;
-  for (const double s : offsets) {
+  int ahead = 0, behind = 0, ahead_far = 0, behind_far = 0;
+  const std::size_t half = offsets.size() / 2;
+  for (std::size_t i = 0; i < offsets.size(); ++i) {
+    const double s = offsets[i];
     const float va = sample(height, r + s * sa, c + s * ca), vb = sample(height, r - s * sa, c - s * ca);
-    if (std::isfinite(va)) xs.push_back({s * pixel, va}), ++ahead;
-    if (std::isfinite(vb)) xs.push_back({-s * pixel, vb}), ++behind;
+    if (std::isfinite(va)) xs.push_back({s * pixel, va}), ++ahead, ahead_far += i >= half;
+    if (std::isfinite(vb)) xs.push_back({-s * pixel, vb}), ++behind, behind_far += i >= half;
   }
-  if (ahead < need || behind < need) return false;
+  // Both flanks reach out: a profile is interpolated, never extrapolated from one side.
+  const int need_far = static_cast<int>((offsets.size() - half) / 2);
+  if (ahead < need || behind < need || ahead_far < need_far || behind_far < need_far) return false;
   residual.assign(xs.size(), 0.0f);
   double a0 = 0.0;
   float sigma = 0.0f;
