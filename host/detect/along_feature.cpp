@@ -19,6 +19,7 @@ constexpr double kFlankFar = 0.045;     // m
 constexpr double kFlankStep = 0.002;    // m between flank samples (at least a pixel)
 constexpr double kWallSlope = 0.8;     // steeper than a character line's flank (up to ~0.5)
 constexpr double kWallReach = 0.003;   // m round a wall: its rounded rims
+constexpr double kPlainEdgeReach = 0.035;  // m from the border zone: no plain deviation
 constexpr double kEdgeReach = 0.012;    // m from the border zone: left alone
 constexpr double kMinDiameter = 0.006;  // m: narrower pieces are the line's own remnants
 constexpr double kTensorSigma = 0.006;  // m: the structure tensor's window
@@ -258,7 +259,7 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
       const std::uint8_t* zr = zone.ptr<std::uint8_t>(r);
       for (int c = 0; c < cols; ++c) {
         const float here = dev.at<float>(r, c), h = height.at<float>(r, c);
-        if (!zr[c] || !std::isfinite(here) || !std::isfinite(h) || wall.at<std::uint8_t>(r, c)) continue;
+        if (!zr[c] || !std::isfinite(h) || wall.at<std::uint8_t>(r, c)) continue;
         // Along the feature: across the heights' dominant gradient, where that is
         // clearly one direction; elsewhere there is no line to take out.
         const float jxx = jx.at<float>(r, c), jyy = jy.at<float>(r, c), jxy = jxy_.at<float>(r, c);
@@ -426,7 +427,15 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
   // A defect in a pixel's flanks lifts or lowers its profile and leaves a ghost of the
   // other sign 13-45 mm along the line each side of it. So the first pass's findings
   // leave the flanks of the second.
-  AlongFeature along = along_feature_residual(map, s.dev, zone, near_edge);
+  // Where no feature has a direction the deviation itself is searched again (a defect
+  // the search took for part of a design feature), but not near the border, whose own
+  // band (and a line running into it) the search has already judged.
+  cv::Mat plain = s.dev.clone(), near_border;
+  const int border_reach = std::max(1, static_cast<int>(std::lround(kPlainEdgeReach / map.pixel)));
+  cv::dilate(s.edge_zone, near_border,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
+  plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
+  AlongFeature along = along_feature_residual(map, plain, zone, near_edge);
   cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
   std::vector<std::vector<std::int32_t>> first_px;
   findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, cfg, first_px);
@@ -441,7 +450,7 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
-    const AlongFeature second = along_feature_residual(map, s.dev, again, blocked);
+    const AlongFeature second = along_feature_residual(map, plain, again, blocked);
     second.residual.copyTo(along.residual, again);
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);
