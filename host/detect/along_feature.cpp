@@ -14,20 +14,20 @@
 namespace dentmark::detect {
 namespace {
 
-constexpr double kFlankNear = 0.013;    // m: flanks start past a 26 mm defect's radius
-constexpr double kFlankFar = 0.045;     // m
-constexpr double kFlankStep = 0.002;    // m between flank samples (at least a pixel)
-constexpr double kWallSlope = 0.8;     // steeper than a character line's flank (up to ~0.5)
-constexpr double kWallReach = 0.003;   // m round a wall: its rounded rims
+constexpr double kFlankNear = 0.013;       // m: flanks start past a 26 mm defect's radius
+constexpr double kFlankFar = 0.045;        // m
+constexpr double kFlankStep = 0.002;       // m between flank samples (at least a pixel)
+constexpr double kWallSlope = 0.8;         // steeper than a character line's flank (up to ~0.5)
+constexpr double kWallReach = 0.003;       // m round a wall: its rounded rims
 constexpr double kPlainEdgeReach = 0.035;  // m from the border zone: no plain deviation
-constexpr double kEdgeReach = 0.012;    // m from the border zone: left alone
-constexpr double kMinDiameter = 0.006;  // m: narrower pieces are the line's own remnants
-constexpr double kTensorSigma = 0.006;  // m: the structure tensor's window
-constexpr double kSlopeSigma = 0.020;   // m: the panel's own slope, taken out of the gradients
-constexpr float kCoherence = 0.5f;      // anisotropy of a line's neighbourhood
-constexpr double kFlankFull = 0.6;      // share of a flank's samples that must be seen
-constexpr double kZoneReach = 0.030;    // m round the design candidates
-constexpr float kSpreadSigmas = 4.0f;   // threshold in the flanks' own spread
+constexpr double kEdgeReach = 0.012;       // m from the border zone: left alone
+constexpr double kMinDiameter = 0.006;     // m: narrower pieces are the line's own remnants
+constexpr double kTensorSigma = 0.006;     // m: the structure tensor's window
+constexpr double kSlopeSigma = 0.020;      // m: the panel's own slope, taken out of the gradients
+constexpr float kCoherence = 0.5f;         // anisotropy of a line's neighbourhood
+constexpr double kFlankFull = 0.6;         // share of a flank's samples that must be seen
+constexpr double kZoneReach = 0.030;       // m round the design candidates
+constexpr float kSpreadSigmas = 4.0f;      // threshold in the flanks' own spread
 
 }  // namespace
 
@@ -340,7 +340,8 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
       const float lq = local.ptr<float>()[q];
       const float t =
           std::max({thr, along.uncertainty.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
-      if (std::abs(m) > t && weights.ptr<float>()[q] > 0.0f && zone.data[q]) out.cand.data[q] = 255;  // NaN: false
+      if (std::abs(m) > t && weights.ptr<float>()[q] > 0.0f && zone.data[q])
+        out.cand.data[q] = 255;  // NaN: false
     }
     if (i == 0) out.finest = mean, out.finest_sigma = std::max(s.sigma3, sigma);
   }
@@ -432,8 +433,9 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
   // band (and a line running into it) the search has already judged.
   cv::Mat plain = s.dev.clone(), near_border;
   const int border_reach = std::max(1, static_cast<int>(std::lround(kPlainEdgeReach / map.pixel)));
-  cv::dilate(s.edge_zone, near_border,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
+  cv::dilate(
+      s.edge_zone, near_border,
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
   plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
   AlongFeature along = along_feature_residual(map, plain, zone, near_edge);
   cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
@@ -446,8 +448,9 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
   // Only pixels with a finding within a flank's reach see their flanks change.
   const int flank_reach = static_cast<int>(std::ceil(kFlankFar / map.pixel));
   cv::Mat again;
-  cv::dilate(found, again,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
+  cv::dilate(
+      found, again,
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
     const AlongFeature second = along_feature_residual(map, plain, again, blocked);

@@ -17,7 +17,11 @@
 //    leaving out samples past 3 sigma; it is uncertain by 4 times the fit's spread or by
 //    how far apart the two flanks' own lines pass the pixel, whichever is larger (a
 //    handle's end, a line that stops);
-//  - where no direction dominates, the deviation itself.
+//  - both flanks seen and reaching out (no profile extrapolated from one side);
+//  - walls (slope over 0.8 less the panel's: a handle's sides and ends) neither looked
+//    at nor in a profile;
+//  - where no direction dominates, the deviation itself, except within 35 mm of the
+//    border zone (the border's own band, judged by the design rules).
 // Candidates pass the detection scales' thresholds (from the residual's own noise, which
 // neighbouring pixels share), the profile's uncertainty, and detection_sigma times the
 // residual's spread along the line through them (a steep flank's small errors repeat
