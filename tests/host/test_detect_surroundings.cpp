@@ -41,6 +41,20 @@ ingest::Mesh noisy_patch(int cols, int rows, double spacing,
   return patch;
 }
 
+// A defect planted 'across' (m) from a line or fold at 'at' (map plane) is reported within
+// 'reach' of it, of its kind, and its height within 'tolerance'.
+void expect_reported(const detect::Detection& det, const Eigen::Vector2d& at, double reach, double height,
+                     double tolerance, double across) {
+  const auto found = std::find_if(det.defects.begin(), det.defects.end(), [&](const auto& f) {
+    return (f.defect.position.template head<2>() - at).norm() < reach;
+  });
+  ASSERT_NE(found, det.defects.end()) << "defect " << across * 1e3 << " mm from the line";
+  EXPECT_EQ(found->defect.defect_class,
+            height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump)
+      << "defect " << across * 1e3 << " mm from the line";
+  EXPECT_NEAR(found->defect.height, height, tolerance) << "defect " << across * 1e3 << " mm from the line";
+}
+
 TEST(Detect, ACreaseShapedDentIsReadToItsFloor) {
   // A long narrow dent (a crease from a sharp edge: 40 x 6 mm, cos² across, flat along
   // with cos² ends) and the same as a bump, at 0.4 mm and 15 µm. Their apex was fitted
@@ -106,16 +120,9 @@ TEST(Detect, DefectsBesideASharpFoldAreFoundAndTheFoldIsNot) {
   const ingest::Mesh patch = noisy_patch(601, 401, 0.0005, height_at, 17);
   const detect::Detection det = detect::detect(patch, detect::DetectConfig{});
   EXPECT_EQ(det.defects.size(), std::size(planted));
-  for (const Planted& d : planted) {
-    const Eigen::Vector2d at = centre + d.s * along + d.t * across;
-    const auto found = std::find_if(det.defects.begin(), det.defects.end(), [&](const auto& f) {
-      return (f.defect.position.template head<2>() - at).norm() < 0.001;
-    });
-    ASSERT_NE(found, det.defects.end()) << "defect " << d.t * 1e3 << " mm from the fold";
-    EXPECT_EQ(found->defect.defect_class,
-              d.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump);
-    EXPECT_NEAR(found->defect.height, d.height, std::max(1e-5, 0.1 * std::abs(d.height)));
-  }
+  for (const Planted& d : planted)
+    expect_reported(det, centre + d.s * along + d.t * across, 0.001, d.height,
+                    std::max(1e-5, 0.1 * std::abs(d.height)), d.t);
   // The fold itself is a design feature, never a defect.
   bool fold_seen = false;
   for (const auto& f : det.features)
@@ -156,16 +163,9 @@ TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
   detect::DetectConfig cfg;
   cfg.along_features = true;
   const detect::Detection det = detect::detect(patch, cfg);
-  for (const Planted& d : planted) {
-    const Eigen::Vector2d at = centre + d.s * along + d.t * across;
-    const auto found = std::find_if(det.defects.begin(), det.defects.end(), [&](const auto& f) {
-      return (f.defect.position.template head<2>() - at).norm() < 0.003;
-    });
-    ASSERT_NE(found, det.defects.end()) << "defect " << d.t * 1e3 << " mm from the line";
-    EXPECT_EQ(found->defect.defect_class,
-              d.height < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump);
-    EXPECT_NEAR(found->defect.height, d.height, 0.25 * std::abs(d.height)) << "at " << d.t * 1e3 << " mm";
-  }
+  for (const Planted& d : planted)
+    expect_reported(det, centre + d.s * along + d.t * across, 0.003, d.height, 0.25 * std::abs(d.height),
+                    d.t);
   EXPECT_EQ(det.defects.size(), std::size(planted));
 }
 
