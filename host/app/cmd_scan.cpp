@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -68,6 +69,7 @@ struct SynthArgs {
   bool no_crease = false, no_handle = false, no_window = false;
   std::vector<std::string> lines;       // --character-line Y,ANGLE,STEP,WIDTH
   std::vector<std::string> near_lines;  // --near-lines: gaps in m, or "on"
+  std::vector<double> tilt;             // --tilt YAW,PITCH,ROLL (rad)
 };
 
 // "Y,ANGLE,STEP,WIDTH": a character line through (width/2, Y x height) at ANGLE rad,
@@ -111,6 +113,12 @@ void apply_placements(SynthArgs& a) {
     if (g.empty() || *stop != '\0' || !std::isfinite(v))
       throw std::invalid_argument("--near-lines: '" + g + "' is neither a gap in m nor 'on'");
     a.options.near_lines.push_back(v);
+  }
+  if (!a.tilt.empty()) {
+    for (const double v : a.tilt)
+      if (!(std::abs(v) <= 0.5 * std::numbers::pi))
+        throw std::invalid_argument("--tilt: each of YAW,PITCH,ROLL must be a number within pi/2 rad");
+    a.options.tilt = Eigen::Vector3d(a.tilt[0], a.tilt[1], a.tilt[2]);
   }
   if (a.paper_bump) {
     // The paper's bump (§V): 9 mm wide, 11 mm high, 30 % along the door, 27.5 % up.
@@ -383,6 +391,10 @@ void register_scan(CLI::App& app, CLI::App& synth) {
   sc->add_option("--width", s->options.shape.width, "Panel width (m)");
   sc->add_option("--height", s->options.shape.height, "Panel height (m)");
   sc->add_flag("--shuffle", s->options.shuffle, "Vertices and triangles in random order");
+  sc->add_option("--tilt", s->tilt,
+                 "YAW,PITCH,ROLL: the sensor's pose (rad; default: yaw and pitch drawn within 12 degrees)")
+      ->delimiter(',')
+      ->expected(3);
   sc->add_flag("--paper", s->paper, "The paper's case: ~32 k points, a 9 mm x 11 mm bump and the handle");
   sc->add_flag("--paper-bump", s->paper_bump, "Add the paper's 9 mm x 11 mm bump (at any spacing and noise)");
   sc->add_flag("--no-crease", s->no_crease, "No sharp crease");

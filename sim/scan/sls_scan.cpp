@@ -167,7 +167,8 @@ struct SensorGrid {
 SensorGrid place_sensor(const ScanOptions& o, const DoorPanel& panel, std::mt19937_64& rng) {
   const double W = o.shape.width, H = o.shape.height;
   std::uniform_real_distribution<double> tilt(-12.0, 12.0);
-  const double yaw = tilt(rng) * std::numbers::pi / 180.0, pitch = tilt(rng) * std::numbers::pi / 180.0;
+  double yaw = tilt(rng) * std::numbers::pi / 180.0, pitch = tilt(rng) * std::numbers::pi / 180.0;
+  if (o.tilt) yaw = o.tilt->x(), pitch = o.tilt->y();  // (the roll: synthesize_scan)
   const Eigen::Vector3d centre(0.5 * W, 0.5 * H, panel.z_nominal(0.5 * W, 0.5 * H));
   const Eigen::Vector3d back =
       (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()))
@@ -458,8 +459,15 @@ SynthScan synthesize_scan(const ScanOptions& o) {
   scan.T_sls_panel = sensor.T_sls_panel;
   mesh_grid(grid, valid, sensor.rows, sensor.cols, o.spacing, scan);
   if (o.shuffle) shuffle_mesh(scan, rng);
-  scan.defects = truth_defects(panel, holes, sensor.T_sls_panel);
-  scan.features = truth_features(o.shape, panel, sensor.T_sls_panel);
+  if (o.tilt && o.tilt->z() != 0.0) {
+    // A sensor rolled about its axis sees the same grid, turned in its frame.
+    const Eigen::Matrix3f R =
+        Eigen::AngleAxisf(static_cast<float>(o.tilt->z()), Eigen::Vector3f::UnitZ()).matrix();
+    for (Eigen::Vector3f& v : scan.vertices) v = R * v;
+    scan.T_sls_panel.prerotate(Eigen::AngleAxisd(o.tilt->z(), Eigen::Vector3d::UnitZ()));
+  }
+  scan.defects = truth_defects(panel, holes, scan.T_sls_panel);
+  scan.features = truth_features(o.shape, panel, scan.T_sls_panel);
   return scan;
 }
 

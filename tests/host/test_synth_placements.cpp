@@ -102,5 +102,31 @@ TEST(NearFeatures, NonsenseIsRefused) {
   EXPECT_THROW(synthesize_scan(o), std::invalid_argument);
 }
 
+TEST(SensorPose, ARolledSensorSeesTheSameScanTurnedAboutItsAxis) {
+  // The benchmark's layouts turn the scan in the sensor frame: the same samples, the
+  // truth turned with them.
+  ScanOptions o;
+  o.seed = 3;
+  o.spacing = 0.004;
+  o.tilt = Eigen::Vector3d(0.1, -0.15, 0.0);
+  const SynthScan level = synthesize_scan(o);
+  o.tilt->z() = 0.6;
+  const SynthScan rolled = synthesize_scan(o);
+  ASSERT_EQ(level.vertices.size(), rolled.vertices.size());
+  ASSERT_EQ(level.triangles, rolled.triangles);
+  const Eigen::AngleAxisd roll(0.6, Eigen::Vector3d::UnitZ());
+  for (std::size_t k = 0; k < level.vertices.size(); ++k)
+    ASSERT_LT((roll * level.vertices[k].cast<double>() - rolled.vertices[k].cast<double>()).norm(), 1e-6)
+        << k;
+  ASSERT_EQ(level.defects.size(), rolled.defects.size());
+  for (std::size_t k = 0; k < level.defects.size(); ++k) {
+    EXPECT_LT((roll * level.defects[k].position - rolled.defects[k].position).norm(), 1e-12);
+    EXPECT_LT((roll * level.defects[k].normal - rolled.defects[k].normal).norm(), 1e-12);
+  }
+  // Its own yaw and pitch: not the ones drawn for the seed.
+  o.tilt.reset();
+  EXPECT_GT((synthesize_scan(o).T_sls_panel.linear() - level.T_sls_panel.linear()).norm(), 1e-3);
+}
+
 }  // namespace
 }  // namespace dentmark::sim::scan

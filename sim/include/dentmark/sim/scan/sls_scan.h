@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,9 @@ struct ScanOptions {
   double hole_backdrop = 0.06;                                  // m, inner structure behind the skin
   bool shuffle = false;                                         // triangles (and vertices) in random order
   double standoff = 0.9;                                        // m, sensor to panel centre
+  // The sensor's yaw, pitch (about the panel's y and x) and roll (about its own axis), rad;
+  // unset: yaw and pitch drawn within 12 degrees, no roll.
+  std::optional<Eigen::Vector3d> tilt;
   PanelShape shape;
   std::vector<PlantedDefect> planted;  // explicit defects (added to the random ones)
   // Defects placed beside features: for each gap (m, from the defect's rim to the
