@@ -29,18 +29,15 @@ constexpr double kFlankFull = 0.6;         // share of a flank's samples that mu
 constexpr double kZoneReach = 0.030;       // m round the design candidates
 constexpr float kSpreadSigmas = 4.0f;      // threshold in the flanks' own spread
 
-}  // namespace
-
-namespace {
-
-// dev at (r, c) interpolated bilinearly; NaN off the map or next to a pixel without one.
-float sample(const cv::Mat& dev, double r, double c) {
+// m (CV_32F) at (r, c) interpolated bilinearly; NaN off the map or next to a pixel without
+// a value.
+float sample(const cv::Mat& m, double r, double c) {
   const int r0 = static_cast<int>(std::floor(r)), c0 = static_cast<int>(std::floor(c));
-  if (r0 < 0 || c0 < 0 || r0 + 1 >= dev.rows || c0 + 1 >= dev.cols)
+  if (r0 < 0 || c0 < 0 || r0 + 1 >= m.rows || c0 + 1 >= m.cols)
     return std::numeric_limits<float>::quiet_NaN();
   const auto fr = static_cast<float>(r - r0), fc = static_cast<float>(c - c0);
-  const float* a = dev.ptr<float>(r0) + c0;
-  const float* b = dev.ptr<float>(r0 + 1) + c0;
+  const float* a = m.ptr<float>(r0) + c0;
+  const float* b = m.ptr<float>(r0 + 1) + c0;
   return (1 - fr) * ((1 - fc) * a[0] + fc * a[1]) + fr * ((1 - fc) * b[0] + fc * b[1]);
 }
 
@@ -49,7 +46,7 @@ float sample(const cv::Mat& dev, double r, double c) {
 // from the first fit left out of the second. The quadratic takes the panel's slope and
 // curvature along the line, which a mean of the flanks would leave in; the pixel's own
 // height is not in the fit, so a defect does not pull it. False when a flank is under
-// kFlankFull seen.
+// kFlankFull seen or its outer half under half seen.
 struct Profile {
   float at_pixel = 0.0f;  // the fit's height at the pixel (m)
   float spread = 0.0f;    // kMadToSigma x the median absolute residual of the fit (m)
