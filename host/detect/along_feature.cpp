@@ -9,6 +9,7 @@
 #include "box_mean.h"
 #include "dentmark/common/nth_smallest.h"
 #include "design_rules.h"
+#include "deviation.h"
 #include "patch_normal.h"
 
 namespace dentmark::detect {
@@ -191,15 +192,6 @@ cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
   return out;
 }
 
-// The robust sigma of the finite values of m (CV_32F) on the pixels set in zone: the
-// noise of a residual whose defects are few.
-double noise_in(const cv::Mat& m, const cv::Mat& zone) {
-  std::vector<double> v;
-  for (int k = 0; k < m.rows * m.cols; ++k)
-    if (const float x = m.ptr<float>()[k]; zone.data[k] && std::isfinite(x)) v.push_back(std::abs(x));
-  return v.empty() ? 0.0 : robust_sigma(std::move(v));
-}
-
 }  // namespace
 
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
@@ -321,7 +313,7 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
     // The residual's own noise at this scale: the profile's error is shared by
     // neighbouring pixels (their flanks overlap), so it does not average out as the
     // deviation's noise does.
-    const double sigma = std::max(s.scale_sigma[i], noise_in(mean, zone));
+    const double sigma = std::max(s.scale_sigma[i], sampled_robust_sigma(mean, zone));
     const auto thr = static_cast<float>(std::max(cfg.detection_sigma * sigma, 0.5 * cfg.min_height));
     if (i == 0) {
       cv::Mat seen = mean.clone();

@@ -29,9 +29,9 @@
 // sign 13-45 mm along the line each side of it, so the search runs twice, the first
 // run's findings left out of the second's flanks.
 //
-// Off by default (DetectConfig::along_features): it finds 95 % or more of the defects
-// beside and on features, but raises about 13 false alarms per m², most along the panel's
-// border and where a feature ends (docs/detection.md §12).
+// Off by default (DetectConfig::along_features): it finds most defects beside and on
+// features, but raises false alarms (1-3 per m², and many more with flying pixels; see
+// docs/detection.md §12).
 
 #include <opencv2/core/mat.hpp>
 #include <vector>

@@ -12,10 +12,8 @@
 #include "threads.h"
 
 namespace dentmark::detect {
-namespace {
 
-// Robust sigma (1.4826 MAD) of the finite, selected values, sampled.
-double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
+double sampled_robust_sigma(const cv::Mat& values, const cv::Mat& select) {
   // 60 k samples: the MAD to ~0.5 %, at a fifth of the cost of 300 k. Gathered in two
   // halves side by side (the strided reads touch every cache line of both images), kept
   // in order: the same sample whatever the thread count.
@@ -37,6 +35,8 @@ double robust_sigma(const cv::Mat& values, const cv::Mat& select) {
   for (auto& x : s) x = std::abs(x - med);
   return dentmark::robust_sigma(std::move(s));
 }
+
+namespace {
 
 // Clears the pieces of 'grown' that reach the border zone (valid pixels outside the
 // interior): beyond a border there is nothing to interpolate from, and a refit without
@@ -112,7 +112,7 @@ void deviation_along_normal(const HeightMap& map, const std::vector<float>& ref,
 void mark_spikes(const HeightMap& map, const cv::Mat& interior, const std::vector<int>& scales,
                  const DetectConfig& cfg, Deviation& out, FitImages& im) {
   // (The noise's σ meanwhile: both are serial.)
-  detail::side_by_side([&] { out.noise = robust_sigma(out.along_normal, interior); },
+  detail::side_by_side([&] { out.noise = sampled_robust_sigma(out.along_normal, interior); },
                        [&] {
                          if (scales.front() >= 3)
                            cv::medianBlur(im.dz, im.dm, 3);
@@ -153,7 +153,7 @@ void mark_candidates(const HeightMap& map, const cv::Mat& interior, const std::v
   for (std::size_t s = 0; s < scales.size(); ++s)
     box_mean(im.dz, im.wv, scales[s], 0.3f * static_cast<float>(scales[s] * scales[s]), im.num[s]);
   detail::for_each_part(scales.size(),
-                        [&](std::size_t s) { scale_sigma[s] = robust_sigma(im.num[s], interior); });
+                        [&](std::size_t s) { scale_sigma[s] = sampled_robust_sigma(im.num[s], interior); });
   // One pass over the scales' means.
   std::vector<const float*> means(scales.size());
   std::vector<float> thresholds(scales.size());
