@@ -1,9 +1,6 @@
 // dentmark-edge: the edge box daemon and its offline tools. Thin: parse, call, report.
-#include <exception>
-#include <iostream>
-
 #include "commands.h"
-#include "dentmark/common/log.h"
+#include "dentmark/common/command_line.h"
 #include "dentmark/common/version.h"
 
 namespace dentmark::edge {
@@ -23,20 +20,5 @@ int main(int argc, char** argv) {
   dentmark::edge::register_simulate(app);
   dentmark::edge::register_calibrate(app);
   dentmark::edge::register_selftest(app);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForVersion& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return 2;  // usage error
-  } catch (const std::exception& e) {
-    dentmark::log::error(e.what());
-    return 1;
-  }
-  return dentmark::edge::exit_code();
+  return dentmark::run_command_line(app, argc, argv, dentmark::edge::exit_code());
 }

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <opencv2/core/eigen.hpp>
 
+#include "dentmark/common/yaml_file.h"
 #include "dentmark/firmware/calibrate/calibrate_error.h"
 
 namespace dentmark::calibrate {
@@ -89,16 +90,7 @@ void check_residual(const cv::FileStorage& fs, const std::string& file, const ch
 }
 
 cv::FileStorage open_yaml(const std::filesystem::path& path) {
-  const std::string file = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw CalibrateError(file + ": no such file");
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(file, cv::FileStorage::READ)) throw CalibrateError(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw CalibrateError(file + ": not readable as OpenCV FileStorage YAML (" + e.err + ")");
-  }
-  return fs;
+  return files::open_yaml_or_throw<CalibrateError>(path);
 }
 
 }  // namespace dentmark::calibrate

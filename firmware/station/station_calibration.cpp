@@ -7,6 +7,7 @@
 #include "dentmark/common/atomic_file.h"
 #include "dentmark/common/utc_time.h"
 #include "dentmark/common/version.h"
+#include "dentmark/common/yaml_file.h"
 #include "dentmark/firmware/track/track_error.h"
 
 namespace dentmark::station {
@@ -14,12 +15,7 @@ namespace fs = std::filesystem;
 
 Transform load_transform(const fs::path& path, const std::string& name, double max_rms) {
   const std::string file = path.string();
-  cv::FileStorage in;
-  try {
-    if (!in.open(file, cv::FileStorage::READ)) throw CalibrationError(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw CalibrationError(file + ": not readable as OpenCV FileStorage YAML (" + e.err + ")");
-  }
+  cv::FileStorage in = files::open_yaml_or_throw<CalibrationError>(path);
   const cv::FileNode node = in[name];
   if (node.empty()) throw CalibrationError(file + ": field " + name + " is missing");
   cv::Mat m;

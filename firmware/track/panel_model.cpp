@@ -5,6 +5,7 @@
 #include <string>
 
 #include "dentmark/common/atomic_file.h"
+#include "dentmark/common/yaml_file.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
@@ -48,18 +49,6 @@ cv::Mat read_matrix(const cv::FileNode& node, const std::string& file, const std
     throw TrackError(file + ": field " + name + " must be " + std::to_string(rows) + " x " +
                      std::to_string(cols));
   return m;
-}
-
-// OpenCV's parser says where in its message: "... 'FILE(LINE): what'".
-std::string parse_problem(const cv::Exception& e, const std::string& file) {
-  const auto at = e.msg.find(file + "(");
-  if (at == std::string::npos) return e.err;
-  std::string rest = e.msg.substr(at + file.size() + 1);
-  const auto close = rest.find("): ");
-  if (close == std::string::npos) return e.err;
-  std::string what = rest.substr(close + 3);
-  while (!what.empty() && (what.back() == '\n' || what.back() == '\'')) what.pop_back();
-  return "line " + rest.substr(0, close) + ": " + what;
 }
 
 }  // namespace
@@ -146,14 +135,7 @@ void save_panel_model(const PanelModel& model, const std::filesystem::path& path
 
 PanelModel load_panel_model(const std::filesystem::path& path, cv::Size expected) {
   const std::string file = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw TrackError(file + ": no such file");
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(file, cv::FileStorage::READ)) throw TrackError(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw TrackError(file + ": not readable as OpenCV FileStorage YAML (" + parse_problem(e, file) + ")");
-  }
+  cv::FileStorage fs = files::open_yaml_or_throw<TrackError>(path);
   if (read_int(fs, file, "dentmark_panel_model", 0, 1000) != kFormatVersion)
     throw TrackError(file + ": field dentmark_panel_model: unsupported version (this build reads " +
                      std::to_string(kFormatVersion) + ")");

@@ -6,6 +6,7 @@
 
 #include "dentmark/common/image/png_io.h"
 #include "dentmark/common/stereo_index.h"
+#include "dentmark/common/yaml_file.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
@@ -30,12 +31,7 @@ Sequence load_sequence(const fs::path& dir) {
 
 std::vector<cv::Point2f> load_seeds(const fs::path& path, cv::Size size) {
   const std::string file = path.string();
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(file, cv::FileStorage::READ)) throw TrackError(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw TrackError(file + ": not readable as OpenCV FileStorage YAML (" + e.err + ")");
-  }
+  cv::FileStorage fs = files::open_yaml_or_throw<TrackError>(path);
   const cv::FileNode node = fs["seeds_right"];
   if (node.empty() || node.isNone()) throw TrackError(file + ": field seeds_right is missing");
   detail::check_matrix_node(node, file, "seeds_right", 2 * 4096);

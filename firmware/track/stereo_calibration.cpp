@@ -6,6 +6,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "dentmark/common/yaml_file.h"
 #include "dentmark/firmware/track/track_error.h"
 #include "matrix_node.h"
 
@@ -94,12 +95,7 @@ void check_residuals(const cv::FileStorage& fs, const std::string& file, const S
 StereoCalibration load_stereo_calibration(const std::filesystem::path& path,
                                           const StereoResidualLimits& limits) {
   const std::string file = path.string();
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(file, cv::FileStorage::READ)) throw TrackError(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw TrackError(file + ": not readable as OpenCV FileStorage YAML (" + e.err + ")");
-  }
+  cv::FileStorage fs = files::open_yaml_or_throw<TrackError>(path);
   StereoCalibration c;
   c.size = {read_positive_int(fs, file, "image_width"), read_positive_int(fs, file, "image_height")};
   c.left = read_camera(fs, file, "K1", "D1");

@@ -1,9 +1,8 @@
 // dentmark: the host CLI. Thin: parse arguments, call a library, report.
-#include <exception>
 
 #include "commands.h"
+#include "dentmark/common/command_line.h"
 #include "dentmark/common/huge_pages.h"
-#include "dentmark/common/log.h"
 #include "dentmark/common/version.h"
 
 namespace dentmark::cli {
@@ -29,20 +28,5 @@ int main(int argc, char** argv) {
   dentmark::cli::register_stereo(app, *synth);
   dentmark::cli::register_update(app);
   dentmark::cli::register_flash(app);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForVersion& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return 2;  // usage error
-  } catch (const std::exception& e) {
-    dentmark::log::error(e.what());
-    return 1;
-  }
-  return dentmark::cli::exit_code();
+  return dentmark::run_command_line(app, argc, argv, dentmark::cli::exit_code());
 }

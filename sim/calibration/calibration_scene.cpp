@@ -5,6 +5,8 @@
 #include <opencv2/core/eigen.hpp>
 #include <stdexcept>
 
+#include "dentmark/common/yaml_file.h"
+
 namespace dentmark::sim::calibration {
 namespace {
 
@@ -38,12 +40,7 @@ double number(const cv::FileStorage& fs, const std::string& file, const char* na
 
 CalibrationScene read_calibration_scene(const std::filesystem::path& path) {
   const std::string file = path.string();
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(file, cv::FileStorage::READ)) throw std::runtime_error(file + ": cannot open");
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error(file + ": not OpenCV FileStorage YAML (" + e.err + ")");
-  }
+  cv::FileStorage fs = files::open_yaml(path);
   CalibrationScene s;
   s.rig.size = cv::Size(static_cast<int>(number(fs, file, "image_width")),
                         static_cast<int>(number(fs, file, "image_height")));

@@ -12,7 +12,8 @@
 
 namespace dentmark::calibrate {
 
-// Opens a YAML file; refuses a missing or unreadable one.
+// Opens a YAML file (files::open_yaml); refuses a missing or unreadable one with a
+// CalibrateError.
 cv::FileStorage open_yaml(const std::filesystem::path& path);
 // A rows×cols matrix (rows 0: any number of rows) of finite values, as doubles.
 cv::Mat read_matrix(const cv::FileNode& node, const std::string& file, const std::string& name, int rows,
