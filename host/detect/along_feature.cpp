@@ -127,8 +127,10 @@ bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector
 // through the mean points of the pixel and its surface neighbours (3 x 3), at the
 // centre. A pixel's mean point lies anywhere in it, and on a character line's flank
 // (slopes up to 1:3) its height alone is off by up to a sixth of a pixel's size, which
-// along the line reads as a streak of false defects.
-cv::Mat heights_of(const HeightMap& map) {
+// along the line reads as a streak of false defects. Pixels set in skip (CV_8U: spikes,
+// holes) have no height and are in no plane: one thrown sample moves its pixel's mean
+// point by millimetres, and every profile whose flank passes it.
+cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip) {
   cv::Mat h(map.rows, map.cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
 #pragma omp parallel for schedule(static)
   for (int r = 0; r < map.rows; ++r) {
@@ -136,7 +138,7 @@ cv::Mat heights_of(const HeightMap& map) {
     for (int c = 0; c < map.cols; ++c) {
       const std::size_t k =
           static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
-      if (!(map.weight[k] > 0.0f)) continue;
+      if (!(map.weight[k] > 0.0f) || skip.data[k]) continue;
       const double uc = map.u0 + (c + 0.5) * map.pixel, vc = map.v0 + (r + 0.5) * map.pixel;
       Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
       Eigen::Vector3d atb = Eigen::Vector3d::Zero();
@@ -144,7 +146,7 @@ cv::Mat heights_of(const HeightMap& map) {
         for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
           const std::size_t q = static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) +
                                 static_cast<std::size_t>(cc);
-          if (!(map.weight[q] > 0.0f)) continue;
+          if (!(map.weight[q] > 0.0f) || skip.data[q]) continue;
           const Eigen::Vector3d row(1.0, (map.u[q] - uc) / map.pixel, (map.v[q] - vc) / map.pixel);
           ata += row * row.transpose(), atb += row * static_cast<double>(map.w[q]);
         }
@@ -155,6 +157,53 @@ cv::Mat heights_of(const HeightMap& map) {
     }
   }
   return h;
+}
+
+// Pixels (CV_8U, 255) whose mean point stands out of the plane through their 8
+// neighbours' mean points by more than `sigmas` robust sigmas of that residual over zone,
+// and by more than 3 times the neighbours' own rms about the plane. One thrown sample (a
+// flying pixel) moves its pixel's mean point by up to millimetres, and near a design
+// feature the deviation's spike test (deviation.h) misses it, since there the reference
+// does not follow the surface; a defect lifts its pixel's neighbours with it, and a
+// line's curvature bends them about the plane as much as it bends the pixel.
+cv::Mat thrown_pixels(const HeightMap& map, const cv::Mat& zone, double sigmas) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  cv::Mat off(map.rows, map.cols, CV_32F, cv::Scalar(nan)), rms(map.rows, map.cols, CV_32F, cv::Scalar(nan));
+#pragma omp parallel for schedule(static)
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c) {
+      const std::size_t k =
+          static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
+      if (!(map.weight[k] > 0.0f)) continue;
+      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+      double n = 0.0, ww = 0.0;
+      for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
+        for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
+          const std::size_t q = static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) +
+                                static_cast<std::size_t>(cc);
+          if (q == k || !(map.weight[q] > 0.0f)) continue;
+          const Eigen::Vector3d row(1.0, (map.u[q] - map.u[k]) / map.pixel,
+                                    (map.v[q] - map.v[k]) / map.pixel);
+          const double dw = static_cast<double>(map.w[q]) - map.w[k];  // about the pixel: no cancellation
+          ata += row * row.transpose(), atb += row * dw;
+          n += 1.0, ww += dw * dw;
+        }
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+      if (n < 5.0 || ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) continue;
+      const Eigen::Vector3d x = ldlt.solve(atb);
+      // Σ residual² = Σ w² − xᵀ Aᵀb at the least-squares solution.
+      const double ss = std::max(0.0, ww - x.dot(atb));
+      off.at<float>(r, c) = static_cast<float>(-x[0]);
+      rms.at<float>(r, c) = static_cast<float>(std::sqrt(ss / (n - 3.0)));
+    }
+  const auto limit = static_cast<float>(sigmas * sampled_robust_sigma(off, zone));
+  cv::Mat thrown(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  for (int k = 0; k < map.rows * map.cols; ++k) {
+    const float e = std::abs(off.ptr<float>()[k]);
+    if (e > limit && e > 3.0f * rms.ptr<float>()[k]) thrown.data[k] = 255;  // NaN: false
+  }
+  return thrown;
 }
 
 // The flank samples' distances from the pixel along the line (pixels, one flank).
@@ -195,7 +244,7 @@ cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
 }  // namespace
 
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
-                                    const cv::Mat& blocked) {
+                                    const cv::Mat& blocked, const cv::Mat& skip) {
   const int rows = dev.rows, cols = dev.cols;
   const double pixel = map.pixel;
   const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -204,7 +253,7 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
   const std::vector<double> offsets = flank_offsets(pixel);
   const int n = static_cast<int>(offsets.size());
   const int need = static_cast<int>(std::ceil(kFlankFull * n));
-  const cv::Mat height = heights_of(map);
+  const cv::Mat height = heights_of(map, skip);
   cv::Mat flank = height.clone();  // the heights the profiles are fitted to
   flank.setTo(std::numeric_limits<float>::quiet_NaN(), blocked);
   // The direction of a feature: the structure tensor, over a Gaussian of kTensorSigma, of
@@ -426,7 +475,8 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       s.edge_zone, near_border,
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
   plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
-  AlongFeature along = along_feature_residual(map, plain, zone, near_edge);
+  const cv::Mat skip = s.excluded | thrown_pixels(map, zone, cfg.detection_sigma);
+  AlongFeature along = along_feature_residual(map, plain, zone, near_edge, skip);
   cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
   std::vector<std::vector<std::int32_t>> first_px;
   findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, cfg, first_px);
@@ -442,7 +492,7 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
-    const AlongFeature second = along_feature_residual(map, plain, again, blocked);
+    const AlongFeature second = along_feature_residual(map, plain, again, blocked, skip);
     second.residual.copyTo(along.residual, again);
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);

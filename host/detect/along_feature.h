@@ -9,6 +9,8 @@
 // heights and not from the reference, whose errors along a smooth step come in blocks:
 //  - heights at the pixels' centres (a plane through the 3 x 3 mean points), since on a
 //    line's steep flank a pixel's mean point alone is off by up to a sixth of a pixel;
+//  - no height where a sample was thrown (the deviation's spikes, and pixels off their
+//    neighbours' plane): a flying pixel moves its pixel's mean point by millimetres;
 //  - the direction across the heights' dominant gradient (less the panel's own slope over
 //    20 mm; the structure tensor over 6 mm), refined to a quarter degree to where the
 //    profile fits best;
@@ -30,7 +32,7 @@
 // run's findings left out of the second's flanks.
 //
 // Off by default (DetectConfig::along_features): it finds most defects beside and on
-// features, but raises false alarms (1-3 per m², and many more with flying pixels; see
+// features, but raises false alarms (1-4 per m², up to 18 with flying pixels; see
 // docs/detection.md §12).
 
 #include <opencv2/core/mat.hpp>
@@ -45,14 +47,15 @@ namespace dentmark::detect {
 // The map's heights less their profile along the feature (residual, along the normal),
 // on the pixels set in zone (CV_8U); where no direction dominates, dev (CV_32F deviation,
 // m) instead; NaN elsewhere, and where either flank has under 60 % of its samples seen.
-// Pixels set in blocked (CV_8U) are never flank samples.
+// Pixels set in blocked (CV_8U) are never flank samples; those set in skip (CV_8U:
+// spikes, holes) have no height at all.
 struct AlongFeature {
   cv::Mat residual;     // CV_32F, m
   cv::Mat uncertainty;  // CV_32F, m: how far off the profile may be at the pixel
   cv::Mat angle;        // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
 };
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
-                                    const cv::Mat& blocked);
+                                    const cv::Mat& blocked, const cv::Mat& skip);
 
 // What the scene around a design feature offers the search for local defects.
 struct AlongFeatureScene {

@@ -10,6 +10,7 @@
 #include <random>
 #include <set>
 #include <tuple>
+#include <vector>
 
 #include "dentmark/host/detect/detector.h"
 #include "dentmark/host/ingest/cloud_mesher.h"
@@ -131,42 +132,104 @@ TEST(Detect, DefectsBesideASharpFoldAreFoundAndTheFoldIsNot) {
   EXPECT_TRUE(fold_seen);
 }
 
-TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
-  // A character line as a stamping leaves it: a 3 mm step rising smoothly over 12 mm, at
-  // 30° across the map, 0.5 mm and 15 µm, with dents and bumps on it and 6-9 mm (rim to
-  // the step's footprint) beside it. The reference follows the step only roughly and
-  // leaves a band along it; each of these defects is a deviation from the line's own
-  // profile along its length (along_features).
-  const Eigen::Vector2d along(std::cos(0.52), std::sin(0.52)), across(-along.y(), along.x());
-  const Eigen::Vector2d centre(0.15, 0.10);
-  constexpr double kStep = 0.003, kWidth = 0.012;
+// A character line as a stamping leaves it: a 3 mm step rising smoothly over 12 mm, at
+// 30° across the map, with dents and bumps on it and 6-9 mm (rim to the step's footprint)
+// beside it, sampled every 0.5 mm with 15 µm of noise.
+struct CharacterLinePatch {
   struct Planted {
     double s, t, diameter, height;  // along and across the line from the centre (m)
   };
-  const Planted planted[] = {{-0.08, 0.0, 0.016, -3e-4},
-                             {-0.02, 0.0, 0.014, 2e-4},
-                             {0.05, 0.006 + 0.010 + 0.006, 0.020, -2e-4},
-                             {0.10, -(0.006 + 0.007 + 0.009), 0.014, 2.5e-4}};
-  const auto height_at = [&](double x, double y) {
-    const Eigen::Vector2d p = Eigen::Vector2d(x, y) - centre;
-    const double t = p.dot(across);
-    double z = t <= -0.5 * kWidth  ? 0.0
-               : t >= 0.5 * kWidth ? kStep
-                                   : kStep * 0.5 * (1.0 + std::sin(std::numbers::pi * t / kWidth));
-    for (const Planted& d : planted) {
-      const double r = (p - d.s * along - d.t * across).norm();
-      if (r < 0.5 * d.diameter) z += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+  static constexpr double kStep = 0.003, kWidth = 0.012;
+  const Eigen::Vector2d along{std::cos(0.52), std::sin(0.52)}, across{-along.y(), along.x()};
+  const Eigen::Vector2d centre{0.15, 0.10};
+  const std::vector<Planted> planted{{-0.08, 0.0, 0.016, -3e-4},
+                                     {-0.02, 0.0, 0.014, 2e-4},
+                                     {0.05, 0.006 + 0.010 + 0.006, 0.020, -2e-4},
+                                     {0.10, -(0.006 + 0.007 + 0.009), 0.014, 2.5e-4}};
+
+  ingest::Mesh mesh() const {
+    const auto height_at = [&](double x, double y) {
+      const Eigen::Vector2d p = Eigen::Vector2d(x, y) - centre;
+      const double t = p.dot(across);
+      double z = t <= -0.5 * kWidth  ? 0.0
+                 : t >= 0.5 * kWidth ? kStep
+                                     : kStep * 0.5 * (1.0 + std::sin(std::numbers::pi * t / kWidth));
+      for (const Planted& d : planted) {
+        const double r = (p - d.s * along - d.t * across).norm();
+        if (r < 0.5 * d.diameter) z += d.height * std::pow(std::cos(std::numbers::pi * r / d.diameter), 2);
+      }
+      return -z;  // towards the sensor at the origin: the line stands up, a bump is less deep
+    };
+    return noisy_patch(601, 401, 0.0005, height_at, 23);
+  }
+  // How many planted defects det reports: within 3 mm, of their kind, height within 25 %.
+  int count_reported(const detect::Detection& det) const {
+    int n = 0;
+    for (const Planted& d : planted)
+      n += std::any_of(det.defects.begin(), det.defects.end(), [&](const auto& f) {
+        return (f.defect.position.template head<2>() - (centre + d.s * along + d.t * across)).norm() <
+                   0.003 &&
+               (f.defect.height < 0) == (d.height < 0) &&
+               std::abs(f.defect.height - d.height) <= 0.25 * std::abs(d.height);
+      });
+    return n;
+  }
+  // Each planted defect reported, and nothing else.
+  void expect_found_alone(const detect::Detection& det) const {
+    for (const Planted& d : planted)
+      expect_reported(det, centre + d.s * along + d.t * across, 0.003, d.height, 0.25 * std::abs(d.height),
+                      d.t);
+    for (const auto& f : det.defects) {
+      const bool planted_here = std::any_of(planted.begin(), planted.end(), [&](const Planted& d) {
+        return (f.defect.position.template head<2>() - (centre + d.s * along + d.t * across)).norm() < 0.003;
+      });
+      EXPECT_TRUE(planted_here) << "false " << report::class_name(f.defect.defect_class) << " "
+                                << 1e3 * f.defect.diameter << " mm, " << 1e3 * f.defect.height << " mm at "
+                                << 1e3 * f.defect.position.transpose() << " mm (" << f.reason << ")";
     }
-    return -z;  // towards the sensor at the origin: the line stands up, a bump is less deep
-  };
-  const ingest::Mesh patch = noisy_patch(601, 401, 0.0005, height_at, 23);
+  }
+};
+
+detect::DetectConfig along_features_on() {
   detect::DetectConfig cfg;
   cfg.along_features = true;
-  const detect::Detection det = detect::detect(patch, cfg);
-  for (const Planted& d : planted)
-    expect_reported(det, centre + d.s * along + d.t * across, 0.003, d.height, 0.25 * std::abs(d.height),
-                    d.t);
-  EXPECT_EQ(det.defects.size(), std::size(planted));
+  return cfg;
+}
+
+TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
+  // The reference follows the step only roughly and leaves a band along it; each of
+  // these defects is a deviation from the line's own profile along its length
+  // (along_features).
+  const CharacterLinePatch line;
+  line.expect_found_alone(detect::detect(line.mesh(), along_features_on()));
+}
+
+TEST(Detect, FlyingPixelsOnACharacterLineRaiseFewDefectsAlongIt) {
+  // 3 samples in 1000 thrown 1-10 mm along their rays, either way, on 8 patches. A thrown
+  // sample moves its pixel's mean point by up to millimetres, and the heights of every
+  // pixel whose plane or profile takes it in. With such pixels left out of the heights
+  // (spikes, and pixels off their neighbours' plane), 26 of the 32 planted defects are
+  // reported (within 3 mm, of their kind, height within 25 %) and 12 other findings
+  // (false, or a planted one's height off); with them in, 10 of 32 and 64 others,
+  // 0.04-1.5 mm high.
+  const CharacterLinePatch line;
+  int reported = 0, false_defects = 0;
+  for (std::uint64_t seed = 5; seed <= 12; ++seed) {
+    ingest::Mesh mesh = line.mesh();
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (auto& v : mesh.vertices)
+      if (u01(rng) < 3e-3) {
+        const double throw_m = (u01(rng) < 0.5 ? -1.0 : 1.0) * (0.001 + 0.009 * u01(rng));
+        v *= static_cast<float>(1.0 + throw_m / v.norm());
+      }
+    const detect::Detection det = detect::detect(mesh, along_features_on());
+    const int found = line.count_reported(det);
+    reported += found;
+    false_defects += static_cast<int>(det.defects.size()) - found;
+  }
+  EXPECT_GE(reported, 24);
+  EXPECT_LE(false_defects, 15);
 }
 
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
