@@ -123,6 +123,42 @@ bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector
   return std::isfinite(out.gap);
 }
 
+// The least-squares plane through the mean points of the surface pixels round (r, c)
+// (3 x 3, with (r, c) itself unless leave_out_centre; none set in skip, CV_8U, which may
+// be empty): its height at (u, v) less w0, and its points' rms about it. False with too
+// few points for a plane (a lone pixel, a line of them).
+struct LocalPlane {
+  double height = 0.0;  // m, less w0 (w0 near the heights keeps the sums' precision)
+  double rms = 0.0;     // m
+  int points = 0;
+};
+bool plane_round(const HeightMap& map, int r, int c, double u, double v, double w0, const cv::Mat& skip,
+                 bool leave_out_centre, LocalPlane& out) {
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  double ww = 0.0;
+  out.points = 0;
+  for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
+    for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
+      const std::size_t q =
+          static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(cc);
+      if ((leave_out_centre && rr == r && cc == c) || !(map.weight[q] > 0.0f) ||
+          (!skip.empty() && skip.data[q]))
+        continue;
+      const Eigen::Vector3d row(1.0, (map.u[q] - u) / map.pixel, (map.v[q] - v) / map.pixel);
+      const double dw = static_cast<double>(map.w[q]) - w0;
+      ata += row * row.transpose(), atb += row * dw;
+      ww += dw * dw, ++out.points;
+    }
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) return false;
+  const Eigen::Vector3d x = ldlt.solve(atb);
+  out.height = x[0];
+  // Σ residual² = Σ dw² − xᵀ Aᵀb at the least-squares solution.
+  out.rms = out.points > 3 ? std::sqrt(std::max(0.0, ww - x.dot(atb)) / (out.points - 3)) : 0.0;
+  return true;
+}
+
 // The map's heights at the pixels' centres (CV_32F, m; NaN where no surface): the plane
 // through the mean points of the pixel and its surface neighbours (3 x 3), at the
 // centre. A pixel's mean point lies anywhere in it, and on a character line's flank
@@ -140,20 +176,10 @@ cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip) {
           static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
       if (!(map.weight[k] > 0.0f) || skip.data[k]) continue;
       const double uc = map.u0 + (c + 0.5) * map.pixel, vc = map.v0 + (r + 0.5) * map.pixel;
-      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-      for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
-        for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
-          const std::size_t q = static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) +
-                                static_cast<std::size_t>(cc);
-          if (!(map.weight[q] > 0.0f) || skip.data[q]) continue;
-          const Eigen::Vector3d row(1.0, (map.u[q] - uc) / map.pixel, (map.v[q] - vc) / map.pixel);
-          ata += row * row.transpose(), atb += row * static_cast<double>(map.w[q]);
-        }
-      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
-      // Too few neighbours for a plane (a lone pixel, a line of them): its own height.
-      hr[c] = ldlt.info() == Eigen::Success && ldlt.rcond() > 1e-3 ? static_cast<float>(ldlt.solve(atb)[0])
-                                                                   : map.w[k];
+      LocalPlane plane;
+      // Too few neighbours for a plane: its own height.
+      hr[c] = plane_round(map, r, c, uc, vc, 0.0, skip, false, plane) ? static_cast<float>(plane.height)
+                                                                      : map.w[k];
     }
   }
   return h;
@@ -174,28 +200,12 @@ cv::Mat thrown_pixels(const HeightMap& map, const cv::Mat& zone, double sigmas) 
     for (int c = 0; c < map.cols; ++c) {
       const std::size_t k =
           static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
-      if (!(map.weight[k] > 0.0f)) continue;
-      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-      double n = 0.0, ww = 0.0;
-      for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
-        for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
-          const std::size_t q = static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) +
-                                static_cast<std::size_t>(cc);
-          if (q == k || !(map.weight[q] > 0.0f)) continue;
-          const Eigen::Vector3d row(1.0, (map.u[q] - map.u[k]) / map.pixel,
-                                    (map.v[q] - map.v[k]) / map.pixel);
-          const double dw = static_cast<double>(map.w[q]) - map.w[k];  // about the pixel: no cancellation
-          ata += row * row.transpose(), atb += row * dw;
-          n += 1.0, ww += dw * dw;
-        }
-      const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
-      if (n < 5.0 || ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) continue;
-      const Eigen::Vector3d x = ldlt.solve(atb);
-      // Σ residual² = Σ w² − xᵀ Aᵀb at the least-squares solution.
-      const double ss = std::max(0.0, ww - x.dot(atb));
-      off.at<float>(r, c) = static_cast<float>(-x[0]);
-      rms.at<float>(r, c) = static_cast<float>(std::sqrt(ss / (n - 3.0)));
+      LocalPlane plane;
+      if (!(map.weight[k] > 0.0f) ||
+          !plane_round(map, r, c, map.u[k], map.v[k], map.w[k], cv::Mat(), true, plane) || plane.points < 5)
+        continue;
+      off.at<float>(r, c) = static_cast<float>(-plane.height);
+      rms.at<float>(r, c) = static_cast<float>(plane.rms);
     }
   const auto limit = static_cast<float>(sigmas * sampled_robust_sigma(off, zone));
   cv::Mat thrown(map.rows, map.cols, CV_8U, cv::Scalar(0));
