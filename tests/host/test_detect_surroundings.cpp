@@ -205,6 +205,9 @@ TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
 }
 
 TEST(Detect, FlyingPixelsOnACharacterLineRaiseFewDefectsAlongIt) {
+  // (One patch runs the same code under the sanitizer: the test above.)
+  if (kSanitized)
+    GTEST_SKIP() << "8 patches through the along stage, over 15 min there: run by the native preset";
   // 3 samples in 1000 thrown 1-10 mm along their rays, either way, on 8 patches. A thrown
   // sample moves its pixel's mean point by up to millimetres, and the heights of every
   // pixel whose plane or profile takes it in. With such pixels left out of the heights
