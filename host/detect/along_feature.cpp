@@ -253,8 +253,8 @@ cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
 
 }  // namespace
 
-AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
-                                    const cv::Mat& blocked, const cv::Mat& skip) {
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
+                                    const cv::Mat& zone, const cv::Mat& blocked) {
   const int rows = dev.rows, cols = dev.cols;
   const double pixel = map.pixel;
   const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -263,7 +263,6 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, co
   const std::vector<double> offsets = flank_offsets(pixel);
   const int n = static_cast<int>(offsets.size());
   const int need = static_cast<int>(std::ceil(kFlankFull * n));
-  const cv::Mat height = heights_of(map, skip);
   cv::Mat flank = height.clone();  // the heights the profiles are fitted to
   flank.setTo(std::numeric_limits<float>::quiet_NaN(), blocked);
   // The direction of a feature: the structure tensor, over a Gaussian of kTensorSigma, of
@@ -485,8 +484,8 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       s.edge_zone, near_border,
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
   plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
-  const cv::Mat skip = s.excluded | thrown_pixels(map, zone, cfg.detection_sigma);
-  AlongFeature along = along_feature_residual(map, plain, zone, near_edge, skip);
+  const cv::Mat height = heights_of(map, s.excluded | thrown_pixels(map, zone, cfg.detection_sigma));
+  AlongFeature along = along_feature_residual(map, height, plain, zone, near_edge);
   cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
   std::vector<std::vector<std::int32_t>> first_px;
   findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, cfg, first_px);
@@ -502,7 +501,7 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
-    const AlongFeature second = along_feature_residual(map, plain, again, blocked, skip);
+    const AlongFeature second = along_feature_residual(map, height, plain, again, blocked);
     second.residual.copyTo(along.residual, again);
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);

@@ -44,18 +44,18 @@
 
 namespace dentmark::detect {
 
-// The map's heights less their profile along the feature (residual, along the normal),
-// on the pixels set in zone (CV_8U); where no direction dominates, dev (CV_32F deviation,
-// m) instead; NaN elsewhere, and where either flank has under 60 % of its samples seen.
-// Pixels set in blocked (CV_8U) are never flank samples; those set in skip (CV_8U:
-// spikes, holes) have no height at all.
+// The heights (CV_32F, m, at the pixels' centres; NaN where none) less their profile
+// along the feature (residual, along the normal), on the pixels set in zone (CV_8U);
+// where no direction dominates, dev (CV_32F deviation, m) instead; NaN elsewhere, and
+// where either flank has under 60 % of its samples seen. Pixels set in blocked (CV_8U)
+// are never flank samples.
 struct AlongFeature {
   cv::Mat residual;     // CV_32F, m
   cv::Mat uncertainty;  // CV_32F, m: how far off the profile may be at the pixel
   cv::Mat angle;        // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
 };
-AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& dev, const cv::Mat& zone,
-                                    const cv::Mat& blocked, const cv::Mat& skip);
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
+                                    const cv::Mat& zone, const cv::Mat& blocked);
 
 // What the scene around a design feature offers the search for local defects.
 struct AlongFeatureScene {
