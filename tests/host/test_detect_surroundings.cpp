@@ -162,14 +162,16 @@ struct CharacterLinePatch {
     };
     return noisy_patch(601, 401, 0.0005, height_at, 23);
   }
+  Eigen::Vector2d at(const Planted& d) const { return centre + d.s * along + d.t * across; }
+  bool near(const detect::Finding& f, const Planted& d) const {
+    return (f.defect.position.template head<2>() - at(d)).norm() < 0.003;
+  }
   // How many planted defects det reports: within 3 mm, of their kind, height within 25 %.
   int count_reported(const detect::Detection& det) const {
     int n = 0;
     for (const Planted& d : planted)
-      n += std::any_of(det.defects.begin(), det.defects.end(), [&](const auto& f) {
-        return (f.defect.position.template head<2>() - (centre + d.s * along + d.t * across)).norm() <
-                   0.003 &&
-               (f.defect.height < 0) == (d.height < 0) &&
+      n += std::any_of(det.defects.begin(), det.defects.end(), [&](const detect::Finding& f) {
+        return near(f, d) && (f.defect.height < 0) == (d.height < 0) &&
                std::abs(f.defect.height - d.height) <= 0.25 * std::abs(d.height);
       });
     return n;
@@ -177,12 +179,11 @@ struct CharacterLinePatch {
   // Each planted defect reported, and nothing else.
   void expect_found_alone(const detect::Detection& det) const {
     for (const Planted& d : planted)
-      expect_reported(det, centre + d.s * along + d.t * across, 0.003, d.height, 0.25 * std::abs(d.height),
-                      d.t);
+      expect_reported(det, at(d), 0.003, d.height, 0.25 * std::abs(d.height), d.t);
+    EXPECT_EQ(det.defects.size(), planted.size());
     for (const auto& f : det.defects) {
-      const bool planted_here = std::any_of(planted.begin(), planted.end(), [&](const Planted& d) {
-        return (f.defect.position.template head<2>() - (centre + d.s * along + d.t * across)).norm() < 0.003;
-      });
+      const bool planted_here =
+          std::any_of(planted.begin(), planted.end(), [&](const Planted& d) { return near(f, d); });
       EXPECT_TRUE(planted_here) << "false " << report::class_name(f.defect.defect_class) << " "
                                 << 1e3 * f.defect.diameter << " mm, " << 1e3 * f.defect.height << " mm at "
                                 << 1e3 * f.defect.position.transpose() << " mm (" << f.reason << ")";
