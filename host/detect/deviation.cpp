@@ -143,30 +143,31 @@ std::vector<int> skin_next_to(const std::vector<int>& from, const FitImages& im,
 // round it; two fly side by side) lifts its pixels' 3 x 3 medians with it, and only its
 // highest pixels pass the spike test: the rest stayed in the box means as specks of
 // 6-8 mm, 40-80 um high (3 on one of the independent generator's doors with 0.33 %
-// flying pixels). So a pixel next to a spike is a spike too where it is off the median of
-// its neighbours that are no spikes by spike_height while that median is within it of
-// the reference (the skin round a thrown cluster; not a defect's flank, nor the band a
-// reference leaves along a line), again until none is added (at most kSpikePasses
-// times); then spikes and their neighbours take that median (im.dm).
+// flying pixels). So from each spike in the skin (the median of its neighbours that are
+// no spikes within spike_height of the reference; not a defect's flank, nor the band a
+// reference leaves along a line), a neighbour in the skin is a spike too where it is off
+// that median by spike_height, again until none is added (at most kSpikePasses times);
+// then spikes and their neighbours take that median (im.dm).
 constexpr int kSpikePasses = 4;
 void grow_spike_clusters(const cv::Mat& along_normal, float spike_height, std::uint8_t* spikes,
                          FitImages& im) {
   const std::size_t n = im.dz.total();
   const float* d = along_normal.ptr<float>();
-  std::vector<int> fresh;
-  for (std::size_t k = 0; k < n; ++k)
-    if (spikes[k]) fresh.push_back(static_cast<int>(k));
-  std::vector<int> all = fresh;
-  std::vector<std::uint8_t> listed(n, 0);
   std::vector<float> scratch;
+  const auto in_skin = [&](int k, float& m) {
+    return median_of_skin(im, spikes, k, scratch, m) && std::abs(m) < spike_height;
+  };
+  std::vector<int> all, fresh;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!spikes[k]) continue;
+    all.push_back(static_cast<int>(k));
+    if (float m = 0.0f; in_skin(static_cast<int>(k), m)) fresh.push_back(static_cast<int>(k));
+  }
+  std::vector<std::uint8_t> listed(n, 0);
   for (int pass = 0; pass < kSpikePasses && !fresh.empty(); ++pass) {
     std::vector<int> found;
-    for (const int k : skin_next_to(fresh, im, spikes, listed)) {
-      float m = 0.0f;
-      if (median_of_skin(im, spikes, k, scratch, m) && std::abs(d[k] - m) > spike_height &&
-          std::abs(m) < spike_height)
-        found.push_back(k);
-    }
+    for (const int k : skin_next_to(fresh, im, spikes, listed))
+      if (float m = 0.0f; in_skin(k, m) && std::abs(d[k] - m) > spike_height) found.push_back(k);
     for (const int k : found) spikes[k] = 255;  // after the pass: the same whatever the order
     all.insert(all.end(), found.begin(), found.end());
     fresh = std::move(found);
@@ -182,9 +183,10 @@ void grow_spike_clusters(const cv::Mat& along_normal, float spike_height, std::u
 // spikes (out.spikes): pixels far from their 3 x 3 median. A lone spike cannot survive
 // the median; a defect of a few pixels can. Spikes and pixels more than hole_depth off
 // the reference join im.off_skin; im.dz becomes the weighted median deviation. At the
-// last fit the spikes grow over thrown clusters (grow_spike_clusters); not before, so
-// the reference's fits do not change (grown along a line's band, pixels left the fit and
-// moved it: 5 defects beside lines were lost over 80 doors).
+// last fit the spikes grow over thrown clusters (grow_spike_clusters; out.median_spikes
+// keeps those of the median test alone); not before, so the reference's fits do not
+// change (grown along a line's band, pixels left the fit and moved it: 5 defects beside
+// lines were lost over 80 doors).
 void mark_spikes(const HeightMap& map, const cv::Mat& interior, const std::vector<int>& scales,
                  const DetectConfig& cfg, bool last_fit, Deviation& out, FitImages& im) {
   // (The noise's σ meanwhile: both are serial.)
@@ -212,7 +214,10 @@ void mark_spikes(const HeightMap& map, const cv::Mat& interior, const std::vecto
     const float off = std::abs(dzp[k] - dmp[k]);
     sp[k] = vp[k] && off > spike_height && off > 2.0f * std::abs(dmp[k]) ? 255 : 0;
   }
-  if (median && last_fit) grow_spike_clusters(out.along_normal, spike_height, sp, im);
+  if (last_fit) {
+    out.median_spikes = out.spikes.clone();
+    if (median) grow_spike_clusters(out.along_normal, spike_height, sp, im);
+  }
 #pragma omp parallel for schedule(static)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(map.size()); ++k) {
     osk[k] |= sp[k] | (std::abs(d[k]) > far_off ? 255 : 0);  // NaN compares false

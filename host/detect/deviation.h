@@ -26,7 +26,8 @@ double sampled_robust_sigma(const cv::Mat& values, const cv::Mat& select);
 struct Deviation {
   cv::Mat along_normal;             // CV_32F: from the reference along the normal (m), NaN where none
   cv::Mat candidates;               // CV_8U: 255 where some scale's box mean is over its threshold
-  cv::Mat spikes;                   // CV_8U: 255 on outlier spikes
+  cv::Mat spikes;                   // CV_8U: 255 on outlier spikes and thrown clusters
+  cv::Mat median_spikes;            // CV_8U: 255 on those of the 3 x 3 median test alone
   double noise = 0.0;               // robust sigma of along_normal over the interior (m)
   std::vector<double> scale_sigma;  // per scale: robust sigma of its box mean (m)
 };
