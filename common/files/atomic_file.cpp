@@ -1,6 +1,7 @@
 #include "dentmark/common/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -66,6 +67,25 @@ void rename_into_place(const std::filesystem::path& tmp, const std::filesystem::
   sync_folder(path);
 }
 
+// A device, a pipe or a socket (or a link to one: /dev/stdout): written in place, since a
+// rename would put a plain file where it was (as root, /dev/null), and a temporary
+// beside it cannot be made in /dev by anyone else.
+bool is_special_file(const std::filesystem::path& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+void write_in_place(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) throw FileError(path, "cannot open: " + system_reason());
+  if (!write_whole(fd, bytes.data(), bytes.size())) {
+    const std::string why = system_reason();
+    ::close(fd);
+    throw FileError(path, "write failed: " + why);
+  }
+  ::close(fd);
+}
+
 }  // namespace
 
 FileError::FileError(const std::filesystem::path& path, const std::string& problem)
@@ -98,6 +118,7 @@ void write_directory_atomically(const std::filesystem::path& dir,
 }
 
 void write_atomically(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+  if (is_special_file(path)) return write_in_place(path, bytes);
   const std::filesystem::path tmp = temporary_beside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) throw FileError(path, "cannot create a temporary file: " + system_reason());
@@ -117,6 +138,7 @@ void write_atomically(const std::filesystem::path& path, std::span<const std::ui
 
 void write_atomically_with(const std::filesystem::path& path,
                            const std::function<void(const std::filesystem::path& tmp)>& write) {
+  if (is_special_file(path)) return write(path);
   const std::filesystem::path tmp = temporary_beside(path);
   try {
     write(tmp);

@@ -1,10 +1,16 @@
 // files::write_atomically and write_atomically_with: the target is either the old file
 // or the whole new one; a failed write leaves the old file and no temporary behind.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <stdexcept>
+#include <string>
 
 #include "../support/temp_dir.h"
 #include "dentmark/common/atomic_file.h"
@@ -54,6 +60,40 @@ TEST(AtomicFile, TheWriterGetsATemporaryBesideTheTargetWithItsExtension) {
   EXPECT_NE(seen, target);
   EXPECT_FALSE(fs::exists(seen));
   EXPECT_EQ(read_all(target), "new");
+}
+
+// What a reader of the pipe at `path` gets, read on another thread.
+std::future<std::string> read_pipe(const fs::path& path) {
+  return std::async(std::launch::async, [path] {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  });
+}
+
+// The reader's text; when nothing wrote to the pipe within 5 s, the reader is let go
+// (an empty write end) and gets nothing.
+std::string read_text(std::future<std::string>& reader, const fs::path& path) {
+  if (reader.wait_for(std::chrono::seconds(5)) != std::future_status::ready)
+    if (const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK); fd >= 0) ::close(fd);
+  return reader.get();
+}
+
+TEST(AtomicFile, APipeOrALinkToOneIsWrittenInPlaceAndStaysAPipe) {
+  // A rename over a device or a pipe would put a plain file in its place (as root, a
+  // "--out /dev/null" once replaced /dev/null).
+  test::TempDir dir("atomic");
+  const fs::path fifo = dir.path() / "out.dml", link = dir.path() / "stdout";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  fs::create_symlink(fifo, link);
+  std::future<std::string> got = read_pipe(fifo);
+  write_atomically(link, "defects");
+  EXPECT_EQ(read_text(got, fifo), "defects");
+  got = read_pipe(fifo);
+  write_atomically_with(fifo, [](const fs::path& p) { std::ofstream(p, std::ios::binary) << "report"; });
+  EXPECT_EQ(read_text(got, fifo), "report");
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(entries(dir.path()), 2u);  // no temporary left beside them
 }
 
 TEST(AtomicFile, AMissingFolderIsAnErrorNamingTheFile) {
