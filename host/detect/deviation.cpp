@@ -38,6 +38,15 @@ double sampled_robust_sigma(const cv::Mat& values, const cv::Mat& select) {
 
 namespace {
 
+// visit(q) for each pixel q of the 3 x 3 round pixel k (k itself included) on a
+// rows x cols map.
+template <class Visit>
+void for_3x3(int k, int rows, int cols, Visit visit) {
+  const int r = k / cols, c = k % cols;
+  for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
+    for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc) visit(rr * cols + cc);
+}
+
 // Clears the pieces of 'grown' that reach the border zone (valid pixels outside the
 // interior): beyond a border there is nothing to interpolate from, and a refit without
 // them only extrapolates into them.
@@ -53,14 +62,9 @@ void keep_border_pieces(cv::Mat& grown, const cv::Mat& valid, const cv::Mat& int
   while (!stack.empty()) {
     const std::int32_t k = stack.back();
     stack.pop_back();
-    const int r = k / cols, c = k % cols;
-    for (int dr = -1; dr <= 1; ++dr)
-      for (int dc = -1; dc <= 1; ++dc) {
-        const int rr = r + dr, cc = c + dc;
-        if (rr < 0 || rr >= rows || cc < 0 || cc >= cols) continue;
-        const std::int32_t n = rr * cols + cc;
-        if (g[n]) g[n] = 0, stack.push_back(n);
-      }
+    for_3x3(k, rows, cols, [&](int n) {
+      if (g[n]) g[n] = 0, stack.push_back(n);
+    });
   }
 }
 
@@ -109,13 +113,12 @@ void deviation_along_normal(const HeightMap& map, const std::vector<float>& ref,
 // false with under 3 of them.
 bool median_of_skin(const FitImages& im, const std::uint8_t* spikes, int k, std::vector<float>& scratch,
                     float& median) {
-  const int rows = im.dz.rows, cols = im.dz.cols, r = k / cols, c = k % cols;
   const float* dzp = im.dz.ptr<float>();
   const std::uint8_t* vp = im.valid.ptr<std::uint8_t>();
   scratch.clear();
-  for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
-    for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc)
-      if (const int q = rr * cols + cc; vp[q] && !spikes[q]) scratch.push_back(dzp[q]);
+  for_3x3(k, im.dz.rows, im.dz.cols, [&](int q) {
+    if (vp[q] && !spikes[q]) scratch.push_back(dzp[q]);
+  });
   if (scratch.size() < 3) return false;
   median = static_cast<float>(median_of(scratch));
   return true;
@@ -125,16 +128,13 @@ bool median_of_skin(const FitImages& im, const std::uint8_t* spikes, int k, std:
 // once. listed: all 0, one per pixel, and all 0 again on return.
 std::vector<int> skin_next_to(const std::vector<int>& from, const FitImages& im, const std::uint8_t* spikes,
                               std::vector<std::uint8_t>& listed) {
-  const int rows = im.dz.rows, cols = im.dz.cols;
   const std::uint8_t* vp = im.valid.ptr<std::uint8_t>();
   std::vector<int> out;
-  for (const int k : from) {
-    const int r = k / cols, c = k % cols;
-    for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
-      for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc)
-        if (const int q = rr * cols + cc; vp[q] && !spikes[q] && !listed[static_cast<std::size_t>(q)])
-          listed[static_cast<std::size_t>(q)] = 1, out.push_back(q);
-  }
+  for (const int k : from)
+    for_3x3(k, im.dz.rows, im.dz.cols, [&](int q) {
+      if (vp[q] && !spikes[q] && !listed[static_cast<std::size_t>(q)])
+        listed[static_cast<std::size_t>(q)] = 1, out.push_back(q);
+    });
   for (const int q : out) listed[static_cast<std::size_t>(q)] = 0;
   return out;
 }

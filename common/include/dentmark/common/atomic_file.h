@@ -4,8 +4,9 @@
 // folder, are flushed to the disk (fsync), and the file is renamed over the target,
 // then the folder is flushed too, so that a power cut leaves the old file or the new
 // one, never half of one. A target that is a device, a pipe or a socket (/dev/null,
-// /dev/stdout, a FIFO) is written in place: a rename would replace the device node. Append-only logs
-// (journals) use AppendLog, which flushes every record before it returns.
+// /dev/stdout, a FIFO) is written in place: a rename would replace the device node.
+// Append-only logs (journals) use AppendLog, which flushes every record before it
+// returns.
 
 #include <cstdint>
 #include <filesystem>
