@@ -32,6 +32,7 @@ struct RunOptions {
   double watchdog_timeout = 0.2;  // s without a control-loop kick before the valve is forced off
   double tracking_timeout = station::JobConfig{}.tracking_timeout;
   double max_estimate_age = station::JobConfig{}.max_estimate_age;
+  double camera_timeout = station::CameraTrackingConfig{}.grab_timeout;
 };
 
 std::string status_line(const protocol::Status& s) {
@@ -77,6 +78,7 @@ int run_daemon(const RunOptions& opt) {
   d.watchdog_timeout = opt.watchdog_timeout;
   d.station.job.tracking_timeout = opt.tracking_timeout;
   d.station.job.max_estimate_age = opt.max_estimate_age;
+  d.tracking.grab_timeout = opt.camera_timeout;
   d.station.firmware_version = kVersion;
 
   if (opt.check_only) return check_setup(d, !opt.calibration_dir.empty());
@@ -167,6 +169,10 @@ void register_run(CLI::App& app) {
   run->add_option("--max-estimate-age", opt->max_estimate_age,
                   "s: an older tracker estimate counts as tracking lost")
       ->check(CLI::Range(0.01, 60.0))
+      ->capture_default_str();
+  run->add_option("--camera-timeout", opt->camera_timeout,
+                  "s without a stereo pair before the cameras count as lost (a running job then stops)")
+      ->check(CLI::Range(0.05, 60.0))
       ->capture_default_str();
   run->callback([opt] { exit_code() = run_daemon(*opt); });
 }
