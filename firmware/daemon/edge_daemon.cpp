@@ -66,6 +66,7 @@ EdgeDaemon::EdgeDaemon(DaemonOptions options, clock::Clock& clock)
   tc.calibration = calibration_.stereo;
   tc.models_dir = calibration_.models_dir;
   tc.max_skew = b.camera.max_skew;
+  tc.trust = options_.station.job.trust;  // predicted from the estimates the job steers by
   if (options_.tracking_override) {
     tracking_ = options_.tracking_override(calibration_);
   } else {

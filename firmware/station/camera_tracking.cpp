@@ -190,7 +190,7 @@ std::unique_ptr<MotionSource> CameraTracking::start(const protocol::DefectList& 
   };
   return std::make_unique<CameraMotionSource>(
       std::make_unique<TrackingMotionSource>(config_.calibration, seeds, std::move(frames), config_.tracker,
-                                             &clock_, config_.frame_processing_time),
+                                             &clock_, config_.frame_processing_time, config_.trust),
       lost_);
 }
 

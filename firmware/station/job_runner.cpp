@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -64,10 +65,25 @@ Transform JobRunner::predicted_tool_pose(const Target& target, const plan::Motio
   return plan::tool_pose_in_base(config_.planner.chain, since_scan(t), target.T_sls_v);
 }
 
-bool JobRunner::tracking_ok() {
+std::optional<std::string> JobRunner::tracking_problem() {
   const auto e = motion_.latest();
-  return e && e->ok && e->quality >= config_.min_quality && e->expected_error <= config_.max_expected_error &&
-         clock_.now() - e->t <= config_.max_estimate_age;
+  if (!e) return "no estimate yet";
+  // The tracker losing the panel is news at once; a poor or unsure estimate is no news,
+  // coasted through until the trusted ones are too old.
+  if (!e->ok) return "the tracker lost the panel";
+  const auto doubt = config_.trust.doubt(*e);
+  if (!doubt) last_trusted_t_ = std::max(last_trusted_t_, e->t);
+  const double age = clock_.now() - last_trusted_t_;
+  if (age <= config_.max_estimate_age) return std::nullopt;
+  const std::string too_old = std::isfinite(age)
+                                  ? "the newest trusted estimate " + std::to_string(age) + " s old > " +
+                                        std::to_string(config_.max_estimate_age) + " s"
+                                  : "no trusted estimate in this job";
+  return doubt ? *doubt + "; " + too_old : too_old;
+}
+
+bool JobRunner::tracking_ok() {
+  return !tracking_problem();
 }
 
 void JobRunner::check_interlocks() {
@@ -94,13 +110,14 @@ hal::RobotStatus JobRunner::wait_robot(std::uint16_t sequence, double timeout, b
   // ends the job as a robot fault, a wait past 'timeout' as a timeout. A move towards
   // the panel aims where the tracker predicts it: with tracking lost (at a poll) the
   // tool is stopped there and then rather than sent on along a stale prediction.
-  return robot_.wait_done(sequence, timeout, config_.poll_period, clock_,
-                          [this, tracked](const hal::RobotStatus& s) {
-                            check_interlocks();
-                            check_robot(s);
-                            if (tracked && !tracking_ok())
-                              throw JobAbort{MarkReason::kTrackingLost, "tracking lost while approaching"};
-                          });
+  return robot_.wait_done(
+      sequence, timeout, config_.poll_period, clock_, [this, tracked](const hal::RobotStatus& s) {
+        check_interlocks();
+        check_robot(s);
+        if (!tracked) return;
+        if (const auto why = tracking_problem())
+          throw JobAbort{MarkReason::kTrackingLost, "tracking lost while approaching: " + *why};
+      });
 }
 
 void JobRunner::check_robot(const hal::RobotStatus& s) {
@@ -130,7 +147,8 @@ protocol::Mark JobRunner::mark_one(const Target& target, const plan::MotionPredi
   double residual = 0.0;
   for (int k = 0; k <= config_.max_corrections; ++k) {
     check_interlocks();
-    if (!tracking_ok()) throw SkipDefect{MarkReason::kTrackingLost, "tracking lost before spraying"};
+    if (const auto why = tracking_problem())
+      throw SkipDefect{MarkReason::kTrackingLost, "tracking lost before spraying: " + *why};
     const auto [pose, t_move] = aim(0.0);
     at = move_and_wait(pose, t_move, Toward::kPanel);
     // The panel kept moving while the tool travelled: how far is the target now?
@@ -214,16 +232,17 @@ std::vector<JobRunner::Target> JobRunner::targets_of(const protocol::DefectList&
   return targets;
 }
 
-bool JobRunner::wait_for_tracking(bool robot_live) {
+bool JobRunner::wait_for_tracking(bool robot_live, double since) {
   const double deadline = clock_.now() + config_.tracking_timeout;
-  while (!tracking_ok() && clock_.now() < deadline && !cancelled_) {
+  const auto ready = [&] { return tracking_ok() && last_trusted_t_ >= since; };
+  while (!ready() && clock_.now() < deadline && !cancelled_ && !motion_.failure()) {
     if (robot_live) {
       check_interlocks();
       robot_.heartbeat();
     }
     clock_.sleep_for(config_.poll_period);
   }
-  return tracking_ok();
+  return ready();
 }
 
 void JobRunner::start_robot() {
@@ -280,6 +299,7 @@ void JobRunner::mark_remaining(std::vector<Target>& remaining, const plan::Motio
 
 protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_scan, JobEvents* events) {
   cancelled_ = false;
+  last_trusted_t_ = -std::numeric_limits<double>::infinity();
   state_ = protocol::EdgeState::kJobReceived;
   JobEvents no_events;
   events_ = events ? events : &no_events;
@@ -296,7 +316,10 @@ protocol::MarkReport JobRunner::run(const protocol::DefectList& list, double t_s
   const std::string job = "job " + std::to_string(list.job_id);
 
   state_ = protocol::EdgeState::kTracking;
-  if (!wait_for_tracking(false)) {
+  // The first estimates are of the kept pairs since the scan, already old: the tool
+  // sets off once the tracker has caught up to a pair taken after the job started, so
+  // the first approach does not run out of estimate age while it catches up.
+  if (!wait_for_tracking(false, clock_.now())) {
     log::warn(job + ": no tracking; nothing marked");
     outcomes.give_up(remaining, MarkOutcome::kSkipped, MarkReason::kTrackingLost);
     safety_.valve_off();

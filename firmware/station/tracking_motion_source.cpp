@@ -23,11 +23,12 @@ Transform extrapolate_motion(double t0, const Transform& M0, double t1, const Tr
 TrackingMotionSource::TrackingMotionSource(track::StereoCalibration calibration,
                                            std::vector<cv::Point2f> seeds_right, StereoFrameSource frames,
                                            track::TrackerOptions options, clock::Clock* clock,
-                                           double processing_time)
+                                           double processing_time, TrackingTrust trust)
     : tracker_(std::move(calibration), options),
       source_(std::move(frames)),
       clock_(clock),
-      processing_time_(clock != nullptr ? processing_time : 0.0) {
+      processing_time_(clock != nullptr ? processing_time : 0.0),
+      trust_(trust) {
   const auto first = source_();
   if (!first) throw track::TrackError("tracking: the camera gave no first frame");
   publish(tracker_.start(first->left, first->right, first->t, seeds_right, first->index));
@@ -55,6 +56,7 @@ void TrackingMotionSource::run() {
     }
     if (!f) break;
     if (clock_) clock_->begin_work();
+    const double t_taken = clock_ ? clock_->now() : 0.0;
     track::FrameResult r;
     try {
       r = tracker_.track(f->left, f->right, f->t, f->index);
@@ -64,6 +66,10 @@ void TrackingMotionSource::run() {
     }
     if (clock_) clock_->end_work();
     if (processing_time_ > 0.0) clock_->sleep_for(processing_time_);  // the modelled board's time
+    if (clock_ && log::level() <= log::Level::kDebug)
+      log::debug("tracker: pair " + std::to_string(f->index) + " taken up " + std::to_string(t_taken - f->t) +
+                 " s after its exposure, published " + std::to_string(clock_->now() - f->t) +
+                 " s after it: " + (r.ok ? "quality " + std::to_string(r.quality) : "lost (" + r.note + ")"));
     publish(r);
   }
 }
@@ -79,7 +85,7 @@ void TrackingMotionSource::publish(const track::FrameResult& r) {
   e.rms = r.rms;
   std::lock_guard lock(mutex_);
   latest_ = e;
-  if (r.ok) {
+  if (!trust_.doubt(e)) {
     ++frames_;
     history_.push_back(e);
     if (past_.size() < kMaxPast) past_.emplace_back(e.t, e.M_camL);

@@ -25,6 +25,7 @@ class MockRobot final : public hal::Robot {
     from_ = pose_;
     target_ = T;
     t_start_ = clock_.now();
+    if (first_move_at < 0.0) first_move_at = t_start_;
     t_end_ = t_start_ + plan::move_time((T.translation() - pose_.translation()).norm(), limits_);
     state_ = robot_link::State::kMoving;
     return ++seq_;
@@ -55,6 +56,7 @@ class MockRobot final : public hal::Robot {
     s.T_base_tool = pose_;
     return s;
   }
+  double first_move_at = -1.0;  // s, when the first move was commanded
   struct Spray {
     double t;
     Transform pose;
@@ -124,10 +126,11 @@ class LineMotion final : public MotionSource {
   LineMotion(clock::Clock& clock, double speed) : clock_(clock), speed_(speed) {}
   std::optional<MotionEstimate> latest() override {
     MotionEstimate e;
-    e.t = clock_.now();
+    e.t = clock_.now() < caught_up_at ? behind_at : clock_.now();
     e.M_camL = predict(e.t);
     e.ok = !(lost_from >= 0 && e.t >= lost_from);
-    e.quality = e.ok ? 1.0 : 0.0;
+    const bool poor = e.t >= poor_from && e.t < poor_until;
+    e.quality = !e.ok ? 0.0 : poor ? 0.05 : 1.0;
     e.expected_error = expected_error;
     e.features = 10;
     return e;
@@ -143,6 +146,10 @@ class LineMotion final : public MotionSource {
   }
   double lost_from = -1.0;       // s: estimates not ok from then on (panel out of view)
   double failed_from = -1.0;     // s: no estimates at all from then on (cameras dead)
+  double caught_up_at = -1.0;    // s: before then the newest estimate is of the pair at
+  double behind_at = 0.0;        //    behind_at (the tracker catching up on kept pairs)
+  double poor_from = -1.0;       // s: estimates of poor quality (a bad pair, an occlusion)
+  double poor_until = -1.0;      //    from poor_from until poor_until
   double expected_error = 2e-4;  // m, what the tracker reports
 
  private:

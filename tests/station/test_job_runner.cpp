@@ -145,6 +145,68 @@ TEST(JobRunner, LostTrackingDuringTheApproachStopsTheToolThere) {
   EXPECT_FALSE(safety.valve_open);
 }
 
+TEST(JobRunner, TheToolSetsOffOnceTheTrackerHasCaughtUp) {
+  // The job starts while the tracker still works through the pairs kept since the scan:
+  // its newest estimate is of a pair 0.3 s old, within max_estimate_age (0.5 s), but
+  // it stays that until the tracker catches up at 0.25 s. Setting off at once, the
+  // first approach would run out of estimate age at 0.2 s; the tool waits instead.
+  const JobConfig cfg = config();
+  clock::SimClock clock;
+  MockRobot robot(clock, cfg.planner.limits);
+  MockSafety safety(clock);
+  LineMotion motion(clock, 0.014);
+  motion.behind_at = -0.3;
+  motion.caught_up_at = 0.25;
+  JobRunner runner(robot, safety, motion, clock, cfg);
+  const auto report = runner.run(list_of({{0.1, 0.0}, {0.2, 0.0}}), -0.4);
+  EXPECT_EQ(runner.state(), protocol::EdgeState::kDone);
+  ASSERT_EQ(report.marks.size(), 2u);
+  for (const auto& m : report.marks) EXPECT_EQ(m.outcome, MarkOutcome::kMarked);
+  EXPECT_GE(robot.first_move_at, motion.caught_up_at);
+  EXPECT_LE(robot.first_move_at, motion.caught_up_at + 2 * cfg.poll_period);
+}
+
+TEST(JobRunner, ABriefSpellOfPoorEstimatesIsCoastedThrough) {
+  // One bad stereo pair, or the arm across the cameras for a moment: estimates of poor
+  // quality for less than max_estimate_age during the first approach. They are no
+  // information; the job steers on by the trusted ones and marks every defect where it
+  // is. Longer than max_estimate_age, and the job ends tracking_lost as above.
+  const JobConfig cfg = config();
+  const auto list = list_of({{0.1, 0.0}, {0.2, 0.0}});
+  for (const double spell : {0.6 * cfg.max_estimate_age, 1.6 * cfg.max_estimate_age}) {
+    clock::SimClock clock;
+    MockRobot robot(clock, cfg.planner.limits);
+    MockSafety safety(clock);
+    LineMotion motion(clock, 0.014);
+    motion.poor_from = 0.2;  // the first approach takes longer than that
+    motion.poor_until = 0.2 + spell;
+    JobRunner runner(robot, safety, motion, clock, cfg);
+    const auto report = runner.run(list, 0.0);
+    ASSERT_EQ(report.marks.size(), 2u);
+    if (spell < cfg.max_estimate_age) {
+      EXPECT_EQ(runner.state(), protocol::EdgeState::kDone) << "spell " << spell << " s";
+      for (const auto& m : report.marks)
+        EXPECT_EQ(m.outcome, MarkOutcome::kMarked) << "spell " << spell << " s";
+      ASSERT_EQ(robot.sprays.size(), 2u);
+      for (const auto& spray : robot.sprays) {  // each on a defect where it is then
+        double nearest = 1.0;
+        for (const auto& d : list.defects)
+          nearest =
+              std::min(nearest, (spray.pose.translation() -
+                                 (d.position + Eigen::Vector3d(0.014 * spray.t, 0, 0) + 0.03 * d.normal))
+                                    .norm());
+        EXPECT_LT(nearest, 0.5e-3);
+      }
+      EXPECT_EQ(robot.aborts, 0);
+    } else {
+      EXPECT_EQ(runner.state(), protocol::EdgeState::kSafe) << "spell " << spell << " s";
+      for (const auto& m : report.marks) EXPECT_EQ(m.reason, MarkReason::kTrackingLost);
+      EXPECT_GE(robot.aborted_at, 0.2 + cfg.max_estimate_age - cfg.poll_period);
+      EXPECT_LE(robot.aborted_at, 0.2 + cfg.max_estimate_age + 2 * cfg.poll_period);
+    }
+  }
+}
+
 TEST(JobRunner, DeadCamerasEndTheJobAtTheNextCheckEvenMidSpray) {
   // The first spray's time from the same job with working cameras; then the cameras die
   // 50 ms into that pulse: the valve closes at the next check (10 ms), the robot is
@@ -192,7 +254,7 @@ TEST(JobRunner, RefusesToMarkWhenTheTrackerIsUnsure) {
   MockRobot robot(clock, cfg.planner.limits);
   MockSafety safety(clock);
   LineMotion motion(clock, 0.014);
-  motion.expected_error = 1.5 * cfg.max_expected_error;  // ok and quality 1, but unsure
+  motion.expected_error = 1.5 * cfg.trust.max_expected_error;  // ok and quality 1, but unsure
   JobRunner runner(robot, safety, motion, clock, cfg);
   const auto report = runner.run(list_of({{0.1, 0.0}}), 0.0);
   ASSERT_EQ(report.marks.size(), 1u);

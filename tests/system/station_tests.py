@@ -328,10 +328,7 @@ def test_kill(st):
         deadline = time.monotonic() + 240
         while ": marked" not in err.read_text():
             if sender.poll() is not None or time.monotonic() > deadline:
-                # The daemon's own account (cameras, tracker), to tell a stalled guest
-                # from a fault of the station's.
-                daemon = st.sh("journalctl -u dentmark-edge -o cat --no-pager -n 30", ok=False)
-                raise Failure(f"no defect marked before the kill:\n{err.read_text()}\ndaemon log:\n{daemon}")
+                raise Failure(f"no defect marked before the kill:\n{err.read_text()}")
             time.sleep(0.05)
         old_pid = st.show("MainPID")["MainPID"]
         t_kill = time.monotonic()

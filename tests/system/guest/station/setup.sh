@@ -96,10 +96,8 @@ if [[ ! -f $run/env ]]; then
   # 1 s while the host did not run the emulator; the e-stop path does not depend on
   # it); 60 s instead of 5 s for the tracker to find the door and catch up on the kept
   # pairs, and estimates up to 2 s old instead of 0.5 s (a 640x480 pair takes the
-  # emulated tracker a large fraction of a second); the cameras lost after 5 s without
-  # a pair instead of 1 s (the tracker catching up at a job's start can hold off the
-  # 2 fps feeder for over a second, which ended the job before its first mark).
-  echo 'DENTMARK_EDGE_ARGS=--watchdog-timeout 3.0 --tracking-timeout 60 --max-estimate-age 2 --camera-timeout 5' \
+  # emulated tracker a large fraction of a second).
+  echo 'DENTMARK_EDGE_ARGS=--watchdog-timeout 3.0 --tracking-timeout 60 --max-estimate-age 2' \
     >/etc/default/dentmark-edge
   # The one drop-in: starting (dynamic linking, the calibration, the cameras) took the
   # emulated CPU over the unit's 60 s on a loaded host, and systemd killed the daemon

@@ -46,6 +46,7 @@ struct CameraTrackingConfig {
   double frame_processing_time = 0.0;
   track::TrackerOptions tracker;
   track::ModelSearchOptions search;
+  TrackingTrust trust;  // the estimates the prediction is made from (the job's own)
 };
 
 class CameraTracking final : public PanelTracking {

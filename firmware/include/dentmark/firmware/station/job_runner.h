@@ -10,6 +10,9 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "dentmark/common/clock/clock.h"
@@ -17,6 +20,7 @@
 #include "dentmark/firmware/hal/robot/robot.h"
 #include "dentmark/firmware/plan/marking_plan.h"
 #include "dentmark/firmware/station/motion_source.h"
+#include "dentmark/firmware/station/tracking_trust.h"
 
 namespace dentmark::station {
 
@@ -60,9 +64,8 @@ struct JobConfig {
   double retract_distance = 0.06;      // m back along the tool axis after spraying
   double correction_tolerance = 4e-4;  // m: re-aim before spraying when the target moved more
   int max_corrections = 3;
-  double min_quality = 0.2;          // tracker quality below this counts as lost
-  double max_expected_error = 2e-3;  // m: a tracker less sure than this counts as lost
-  double max_estimate_age = 0.5;     // s: an older estimate counts as lost
+  TrackingTrust trust;               // the estimates steered by (tracking_trust.h)
+  double max_estimate_age = 0.5;     // s: tracking is lost once the newest trusted estimate is older
   double tracking_timeout = 5.0;     // s to wait for tracking before giving up on a defect
   double move_timeout_margin = 2.0;  // s allowed beyond the planned move time
   double poll_period = 0.01;         // s between status polls
@@ -88,9 +91,10 @@ class JobRunner {
   class Outcomes;
   // The list's markable defects as targets; the others are reported not markable.
   std::vector<Target> targets_of(const protocol::DefectList& list, Outcomes& outcomes) const;
-  // Waits up to tracking_timeout for a usable estimate (with the robot live: interlocks
-  // checked and the heartbeat kept); true when tracking is ok.
-  bool wait_for_tracking(bool robot_live);
+  // Waits up to tracking_timeout for a usable estimate of a pair taken at 'since' or
+  // later (with the robot live: interlocks checked and the heartbeat kept); true when
+  // tracking is ok.
+  bool wait_for_tracking(bool robot_live, double since = -std::numeric_limits<double>::infinity());
   // Connects, and clears a stop the station itself caused; throws on the robot's own fault.
   void start_robot();
   // Marks until nothing is left or tracking or reach give out (those get their reason);
@@ -108,6 +112,10 @@ class JobRunner {
   hal::RobotStatus wait_robot(std::uint16_t sequence, double timeout, bool tracked = false);
   Transform predicted_tool_pose(const Target& target, const plan::MotionPredictor& since_scan,
                                 double t) const;
+  // Why the job cannot steer by the tracker now, or nullopt: no estimate yet, the
+  // tracker lost the panel, or the newest trusted estimate older than max_estimate_age
+  // (then why the newest is distrusted: poor or unsure estimates are coasted through).
+  std::optional<std::string> tracking_problem();
   bool tracking_ok();
   void check_interlocks();
 
@@ -120,6 +128,7 @@ class JobRunner {
   std::atomic<bool> cancelled_{false};
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
   JobEvents* events_ = nullptr;  // during run()
+  double last_trusted_t_ = 0.0;  // frame time of the newest trusted estimate this job saw
 };
 
 }  // namespace dentmark::station

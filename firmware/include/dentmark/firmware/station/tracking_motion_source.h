@@ -19,6 +19,7 @@
 
 #include "dentmark/common/clock/clock.h"
 #include "dentmark/firmware/station/motion_source.h"
+#include "dentmark/firmware/station/tracking_trust.h"
 #include "dentmark/firmware/track/tracker.h"
 
 namespace dentmark::station {
@@ -40,9 +41,10 @@ class TrackingMotionSource final : public MotionSource {
   // on the twin's clock tracking then takes no simulated time (clock.h). A modelled
   // 'processing_time' (s, > 0 only on a simulated clock) is charged on the clock instead:
   // each frame's estimate is published that long after the tracker took the frame up.
+  // Only estimates 'trust' trusts enter the prediction; latest() gives every one.
   TrackingMotionSource(track::StereoCalibration calibration, std::vector<cv::Point2f> seeds_right,
                        StereoFrameSource frames, track::TrackerOptions options = {},
-                       clock::Clock* clock = nullptr, double processing_time = 0.0);
+                       clock::Clock* clock = nullptr, double processing_time = 0.0, TrackingTrust trust = {});
   ~TrackingMotionSource() override;
   TrackingMotionSource(const TrackingMotionSource&) = delete;
   TrackingMotionSource& operator=(const TrackingMotionSource&) = delete;
@@ -51,7 +53,7 @@ class TrackingMotionSource final : public MotionSource {
   Transform predict(double t) override;
   void stop();
   long frames_tracked() const { return frames_.load(); }
-  long frames_failed() const { return failed_.load(); }
+  long frames_failed() const { return failed_.load(); }  // lost or distrusted
 
  private:
   void run();
@@ -61,13 +63,14 @@ class TrackingMotionSource final : public MotionSource {
   StereoFrameSource source_;
   clock::Clock* clock_ = nullptr;
   double processing_time_ = 0.0;
+  TrackingTrust trust_;
   clock::ParticipantThread thread_;  // takes part in simulated time (clock.h)
   std::atomic<bool> stop_{false};
   std::atomic<long> frames_{0};
   std::atomic<long> failed_{0};
   mutable std::mutex mutex_;
-  std::deque<MotionEstimate> history_;  // newest last; ok estimates of the last few seconds
-  // Every ok estimate's time and motion, oldest first: the past is looked up, never
+  std::deque<MotionEstimate> history_;  // newest last; trusted estimates of the last few seconds
+  // Every trusted estimate's time and motion, oldest first: the past is looked up, never
   // extrapolated (the scan time lies tens of seconds back by the time a job runs).
   std::vector<std::pair<double, Transform>> past_;
   std::optional<MotionEstimate> latest_;
