@@ -167,7 +167,7 @@ void register_run(CLI::App& app) {
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();
   run->add_option("--max-estimate-age", opt->max_estimate_age,
-                  "s: an older tracker estimate counts as tracking lost")
+                  "s: tracking counts as lost once the newest trusted tracker estimate is older")
       ->check(CLI::Range(0.01, 60.0))
       ->capture_default_str();
   run->add_option("--camera-timeout", opt->camera_timeout,

@@ -70,8 +70,8 @@ std::optional<std::string> JobRunner::tracking_problem() {
   if (!e) return "no estimate yet";
   // The tracker losing the panel is news at once; a poor or unsure estimate is no news,
   // coasted through until the trusted ones are too old.
-  if (!e->ok) return "the tracker lost the panel";
   const auto doubt = config_.trust.doubt(*e);
+  if (!e->ok) return doubt;
   if (!doubt) last_trusted_t_ = std::max(last_trusted_t_, e->t);
   const double age = clock_.now() - last_trusted_t_;
   if (age <= config_.max_estimate_age) return std::nullopt;

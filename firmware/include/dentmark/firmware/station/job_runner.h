@@ -128,7 +128,8 @@ class JobRunner {
   std::atomic<bool> cancelled_{false};
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
   JobEvents* events_ = nullptr;  // during run()
-  double last_trusted_t_ = 0.0;  // frame time of the newest trusted estimate this job saw
+  // Frame time of the newest trusted estimate this job saw (-inf: none yet).
+  double last_trusted_t_ = -std::numeric_limits<double>::infinity();
 };
 
 }  // namespace dentmark::station
