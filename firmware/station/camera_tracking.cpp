@@ -34,7 +34,7 @@ class CameraMotionSource final : public MotionSource {
   Transform predict(double t) override { return tracker_->predict(t); }
   std::optional<std::string> failure() const override {
     if (cameras_lost_) return "the cameras deliver no frames";
-    return std::nullopt;
+    return tracker_->failure();
   }
 
  private:

@@ -51,10 +51,13 @@ void TrackingMotionSource::run() {
     try {
       f = source_();
     } catch (const std::exception& e) {
-      log::error(std::string("camera: ") + e.what());
-      break;
+      end("the frame source failed: " + std::string(e.what()));
+      return;
     }
-    if (!f) break;
+    if (!f) {
+      if (!stop_) end("the frame source gave no more pairs");
+      return;
+    }
     if (clock_) clock_->begin_work();
     const double t_taken = clock_ ? clock_->now() : 0.0;
     track::FrameResult r;
@@ -72,6 +75,17 @@ void TrackingMotionSource::run() {
                  " s after it: " + (r.ok ? "quality " + std::to_string(r.quality) : "lost (" + r.note + ")"));
     publish(r);
   }
+}
+
+void TrackingMotionSource::end(const std::string& why) {
+  log::error("tracker: " + why + "; no more estimates");
+  std::lock_guard lock(mutex_);
+  ended_ = "the tracker ended: " + why;
+}
+
+std::optional<std::string> TrackingMotionSource::failure() const {
+  std::lock_guard lock(mutex_);
+  return ended_;
 }
 
 void TrackingMotionSource::publish(const track::FrameResult& r) {

@@ -66,6 +66,11 @@ TEST(TrackingMotionSource, MotionAtAScanBeforeTheFirstFrameIsTakenBackAlongTheLi
   TrackingMotionSource source(test::exact_calibration(rig), seeds, frames);
   while (!all_taken) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_GE(source.frames_tracked(), 18);
+  // The source has ended: no estimate will come, which a job must hear at once.
+  for (int i = 0; i < 200 && !source.failure(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(source.failure());
+  EXPECT_NE(source.failure()->find("no more pairs"), std::string::npos) << *source.failure();
 
   // M relative to the first frame, at the scan 0.07 s before it.
   const Transform truth = line.motion(0.0) * line.motion(first_frame).inverse();

@@ -51,12 +51,15 @@ class TrackingMotionSource final : public MotionSource {
 
   std::optional<MotionEstimate> latest() override;
   Transform predict(double t) override;
+  // Once the frame source ended or failed (not by stop()): no estimate will come.
+  std::optional<std::string> failure() const override;
   void stop();
   long frames_tracked() const { return frames_.load(); }
   long frames_failed() const { return failed_.load(); }  // lost or distrusted
 
  private:
   void run();
+  void end(const std::string& why);  // logs it; failure() reports it from then on
   void publish(const track::FrameResult& r);
 
   track::Tracker tracker_;
@@ -74,6 +77,7 @@ class TrackingMotionSource final : public MotionSource {
   // extrapolated (the scan time lies tens of seconds back by the time a job runs).
   std::vector<std::pair<double, Transform>> past_;
   std::optional<MotionEstimate> latest_;
+  std::optional<std::string> ended_;
 };
 
 // M(t) extrapolated at constant velocity from two motions (t0, M0), (t1, M1), t1 > t0.
