@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <opencv2/imgproc.hpp>
 
 #include "box_mean.h"
@@ -29,6 +30,7 @@ constexpr float kCoherence = 0.5f;         // anisotropy of a line's neighbourho
 constexpr double kFlankFull = 0.6;         // share of a flank's samples that must be seen
 constexpr double kZoneReach = 0.030;       // m round the design candidates
 constexpr float kSpreadSigmas = 4.0f;      // threshold in the flanks' own spread
+constexpr double kJoinGap = 0.005;         // m: findings of one sign closer than this are one defect
 
 // m (CV_32F) at (r, c) interpolated bilinearly; NaN off the map or next to a pixel without
 // a value.
@@ -312,14 +314,27 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height,
         const float jxx = jx.at<float>(r, c), jyy = jy.at<float>(r, c), jxy = jxy_.at<float>(r, c);
         const float tr = jxx + jyy;
         const float aniso = std::sqrt((jxx - jyy) * (jxx - jyy) + 4 * jxy * jxy);
-        if (!(tr > 0.0f) || aniso < kCoherence * tr) {
-          out.residual.at<float>(r, c) = here;
-          out.uncertainty.at<float>(r, c) = 0.0f;
-          continue;
-        }
-        double best_a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
         Profile best{0.0f, std::numeric_limits<float>::infinity()}, f;
-        if (profile_at(flank, r, c, best_a, offsets, pixel, need, xs, residual, scratch, f)) best = f;
+        double best_a = 0.0;
+        if (tr > 0.0f && aniso >= kCoherence * tr) {
+          best_a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
+          if (profile_at(flank, r, c, best_a, offsets, pixel, need, xs, residual, scratch, f)) best = f;
+        } else if (std::isfinite(here)) {
+          // No direction dominates (a rim beside a wall, a flat stretch): the direction,
+          // of eight, along which the surface's profile fits best. Not near the border,
+          // whose rolled edge bends every profile that reaches it.
+          for (int i = 0; i < 8; ++i) {
+            const double a = i * std::numbers::pi / 8.0;
+            if (profile_at(flank, r, c, a, offsets, pixel, need, xs, residual, scratch, f) &&
+                f.spread < best.spread)
+              best = f, best_a = a;
+          }
+          if (!std::isfinite(best.spread)) {
+            out.residual.at<float>(r, c) = here;
+            out.uncertainty.at<float>(r, c) = 0.0f;
+            continue;
+          }
+        }
         // Refine the direction: halving steps round it, down to a quarter degree, to the
         // one along which the profile fits best.
         for (double da = 0.05; da > 0.004; da /= 2) {
@@ -353,7 +368,7 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
                                        const cv::Mat& zone, const cv::Mat& blocked, const DetectConfig& cfg) {
   const int rows = s.map.rows, cols = s.map.cols;
   // The detection scales' means of the residual and their thresholds (deviation.h).
-  cv::Mat values(rows, cols, CV_32F), weights(rows, cols, CV_32F);
+  cv::Mat values(rows, cols, CV_32F), weights(rows, cols, CV_32F), doubts(rows, cols, CV_32F);
   for (int k = 0; k < rows * cols; ++k) {
     const float v = along.residual.ptr<float>()[k];
     // Off the profile by more than a hole is deep: a feature's own shape (a handle's end,
@@ -361,13 +376,18 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
     const bool ok = std::abs(v) <= cfg.hole_depth && !s.excluded.data[k];  // NaN: false
     values.ptr<float>()[k] = ok ? v : 0.0f;
     weights.ptr<float>()[k] = ok ? 1.0f : 0.0f;
+    doubts.ptr<float>()[k] = ok ? along.uncertainty.ptr<float>()[k] : 0.0f;
   }
   ResidualCandidates out{cv::Mat(rows, cols, CV_8U, cv::Scalar(0)), cv::Mat(), s.sigma3};
   cv::Mat local;  // the finest scale's noise along the feature
   for (std::size_t i = 0; i < s.scales.size(); ++i) {
-    cv::Mat mean;
+    cv::Mat mean, doubt;
     const int k = s.scales[i];
     box_mean(values, weights, k, 0.3f * static_cast<float>(k * k), mean);
+    // A mean carries the profile errors of every pixel in it: they are shared along the
+    // line, so they do not average out, and a mean beside an uncertain stretch is as
+    // uncertain as the share of it that it takes in.
+    box_mean(doubts, weights, k, 0.3f * static_cast<float>(k * k), doubt);
     // The residual's own noise at this scale: the profile's error is shared by
     // neighbouring pixels (their flanks overlap), so it does not average out as the
     // deviation's noise does.
@@ -385,8 +405,7 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
       // handle's end) the profile is uncertain by as much; and where the residual itself
       // varies along the line, by as much as it does.
       const float lq = local.ptr<float>()[q];
-      const float t =
-          std::max({thr, along.uncertainty.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
+      const float t = std::max({thr, doubt.ptr<float>()[q], std::isfinite(lq) ? local_sigmas * lq : 0.0f});
       if (std::abs(m) > t && weights.ptr<float>()[q] > 0.0f && zone.data[q])
         out.cand.data[q] = 255;  // NaN: false
     }
@@ -456,6 +475,48 @@ std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatur
   return out;
 }
 
+// The findings, those within kJoinGap of a stronger one of the same sign (rim to rim,
+// at their measured diameters) merged into it: a defect across a line's flank is cut
+// where its profile is least sure, the steep middle, and its halves would read as two.
+// The merged finding keeps the stronger one's height and normal; its centre is the
+// pieces' area-weighted mean and its diameter spans both. pixels are kept in step.
+std::vector<Finding> one_per_defect(std::vector<Finding> found,
+                                    std::vector<std::vector<std::int32_t>>& pixels) {
+  std::vector<std::size_t> order(found.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return std::abs(found[a].defect.height) > std::abs(found[b].defect.height);
+  });
+  std::vector<std::size_t> kept;  // indices into found, strongest first
+  for (const std::size_t i : order) {
+    const protocol::Defect& weak = found[i].defect;
+    const auto into = std::find_if(kept.begin(), kept.end(), [&](std::size_t k) {
+      const protocol::Defect& strong = found[k].defect;
+      return strong.height * weak.height > 0.0 &&
+             (strong.position - weak.position).norm() < 0.5 * (strong.diameter + weak.diameter) + kJoinGap;
+    });
+    if (into == kept.end()) {
+      kept.push_back(i);
+      continue;
+    }
+    protocol::Defect& strong = found[*into].defect;
+    const double a = strong.area, b = weak.area;
+    const double span = (strong.position - weak.position).norm() + 0.5 * (strong.diameter + weak.diameter);
+    strong.position = (a * strong.position + b * weak.position) / (a + b);
+    strong.diameter = std::max(strong.diameter, span);
+    strong.area = std::numbers::pi * 0.25 * strong.diameter * strong.diameter;
+    found[*into].pixels += found[i].pixels;
+    pixels[*into].insert(pixels[*into].end(), pixels[i].begin(), pixels[i].end());
+  }
+  std::sort(kept.begin(), kept.end());
+  std::vector<Finding> out;
+  std::vector<std::vector<std::int32_t>> out_pixels;
+  for (const std::size_t k : kept)
+    out.push_back(std::move(found[k])), out_pixels.push_back(std::move(pixels[k]));
+  pixels = std::move(out_pixels);
+  return out;
+}
+
 }  // namespace
 
 std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const DetectConfig& cfg,
@@ -506,7 +567,8 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);
   }
-  return findings_of(residual_candidates(along, s, zone, blocked, cfg), s, cfg, pixels);
+  return one_per_defect(findings_of(residual_candidates(along, s, zone, blocked, cfg), s, cfg, pixels),
+                        pixels);
 }
 
 }  // namespace dentmark::detect
