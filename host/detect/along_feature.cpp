@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -31,6 +32,7 @@ constexpr double kFlankFull = 0.6;         // share of a flank's samples that mu
 constexpr double kZoneReach = 0.030;       // m round the design candidates
 constexpr float kSpreadSigmas = 4.0f;      // threshold in the flanks' own spread
 constexpr double kJoinGap = 0.005;         // m: findings of one sign closer than this are one defect
+constexpr double kOutlierScatter = 5.0;    // a thrown point: off its neighbours' plane by this x their rms
 
 // m (CV_32F) at (r, c) interpolated bilinearly; NaN off the map or next to a pixel without
 // a value.
@@ -127,17 +129,20 @@ bool profile_at(const cv::Mat& height, int r, int c, double a, const std::vector
 
 // The least-squares plane through the mean points of the surface pixels round (r, c)
 // (3 x 3, with (r, c) itself unless leave_out_centre; none set in skip, CV_8U, which may
-// be empty): its height at (u, v) less w0, and its points' rms about it. False with too
-// few points for a plane (a lone pixel, a line of them).
+// be empty; with drop_worst, refitted without the point furthest from the first fit when
+// that point is far off the others' plane): its height at (u, v) less w0, and its points'
+// rms about it. False with too few points for a plane (a lone pixel, a line of them).
 struct LocalPlane {
   double height = 0.0;  // m, less w0 (w0 near the heights keeps the sums' precision)
   double rms = 0.0;     // m
   int points = 0;
 };
 bool plane_round(const HeightMap& map, int r, int c, double u, double v, double w0, const cv::Mat& skip,
-                 bool leave_out_centre, LocalPlane& out) {
+                 bool leave_out_centre, LocalPlane& out, bool drop_worst = false) {
   Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
   Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  std::array<Eigen::Vector3d, 9> rows;
+  std::array<double, 9> dws{};
   double ww = 0.0;
   out.points = 0;
   for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
@@ -150,14 +155,34 @@ bool plane_round(const HeightMap& map, int r, int c, double u, double v, double 
       const Eigen::Vector3d row(1.0, (map.u[q] - u) / map.pixel, (map.v[q] - v) / map.pixel);
       const double dw = static_cast<double>(map.w[q]) - w0;
       ata += row * row.transpose(), atb += row * dw;
-      ww += dw * dw, ++out.points;
+      ww += dw * dw;
+      rows[static_cast<std::size_t>(out.points)] = row, dws[static_cast<std::size_t>(out.points)] = dw;
+      ++out.points;
     }
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+  Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
   if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) return false;
-  const Eigen::Vector3d x = ldlt.solve(atb);
-  out.height = x[0];
+  Eigen::Vector3d x = ldlt.solve(atb);
   // Σ residual² = Σ dw² − xᵀ Aᵀb at the least-squares solution.
-  out.rms = out.points > 3 ? std::sqrt(std::max(0.0, ww - x.dot(atb)) / (out.points - 3)) : 0.0;
+  const auto rms_of = [](double sum_w2, const Eigen::Vector3d& fit, const Eigen::Vector3d& sum_bw, int n) {
+    return n > 3 ? std::sqrt(std::max(0.0, sum_w2 - fit.dot(sum_bw)) / (n - 3)) : 0.0;
+  };
+  out.height = x[0];
+  out.rms = rms_of(ww, x, atb, out.points);
+  if (!drop_worst || out.points <= 4) return true;
+  std::size_t worst = 0;
+  for (std::size_t i = 1; i < static_cast<std::size_t>(out.points); ++i)
+    if (std::abs(dws[i] - rows[i].dot(x)) > std::abs(dws[worst] - rows[worst].dot(x))) worst = i;
+  const Eigen::Matrix3d ata_rest = ata - rows[worst] * rows[worst].transpose();
+  const Eigen::Vector3d atb_rest = atb - rows[worst] * dws[worst];
+  ldlt.compute(ata_rest);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) return true;
+  const Eigen::Vector3d y = ldlt.solve(atb_rest);
+  const double rms_rest = rms_of(ww - dws[worst] * dws[worst], y, atb_rest, out.points - 1);
+  // Only a point off the others' plane by far more than they scatter about it (a thrown
+  // sample): a curved surface bends every point about a plane, the worst only somewhat
+  // more than the rest.
+  if (std::abs(dws[worst] - rows[worst].dot(y)) > kOutlierScatter * rms_rest)
+    out.height = y[0], out.rms = rms_rest, --out.points;
   return true;
 }
 
@@ -188,12 +213,14 @@ cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip) {
 }
 
 // Pixels (CV_8U, 255) whose mean point stands out of the plane through their 8
-// neighbours' mean points by more than `sigmas` robust sigmas of that residual over zone,
-// and by more than 3 times the neighbours' own rms about the plane. One thrown sample (a
-// flying pixel) moves its pixel's mean point by up to millimetres, and near a design
-// feature the deviation's spike test (deviation.h) misses it, since there the reference
-// does not follow the surface; a defect lifts its pixel's neighbours with it, and a
-// line's curvature bends them about the plane as much as it bends the pixel.
+// neighbours' mean points (less one far off the others' plane: a thrown sample's needle
+// triangles pull two neighbouring pixels, and each would tilt the other's plane) by more
+// than `sigmas` robust sigmas of that residual over zone, and by more than 3 times the
+// neighbours' own rms about the plane. One thrown sample (a flying pixel) moves its
+// pixel's mean point by up to millimetres, and near a design feature the deviation's
+// spike test (deviation.h) misses it, since there the reference does not follow the
+// surface; a defect lifts its pixel's neighbours with it, and a line's curvature bends
+// them about the plane as much as it bends the pixel.
 cv::Mat thrown_pixels(const HeightMap& map, const cv::Mat& zone, double sigmas) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   cv::Mat off(map.rows, map.cols, CV_32F, cv::Scalar(nan)), rms(map.rows, map.cols, CV_32F, cv::Scalar(nan));
@@ -204,7 +231,8 @@ cv::Mat thrown_pixels(const HeightMap& map, const cv::Mat& zone, double sigmas) 
           static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
       LocalPlane plane;
       if (!(map.weight[k] > 0.0f) ||
-          !plane_round(map, r, c, map.u[k], map.v[k], map.w[k], cv::Mat(), true, plane) || plane.points < 5)
+          !plane_round(map, r, c, map.u[k], map.v[k], map.w[k], cv::Mat(), true, plane, true) ||
+          plane.points < 4)
         continue;
       off.at<float>(r, c) = static_cast<float>(-plane.height);
       rms.at<float>(r, c) = static_cast<float>(plane.rms);

@@ -34,14 +34,15 @@ struct ScanRun {
 };
 
 // `more` adds to the scan what the scanner saw besides the panel.
-inline ScanRun run(const sim::scan::ScanOptions& o, const std::function<void(ingest::Mesh&)>& more = {}) {
+inline ScanRun run(const sim::scan::ScanOptions& o, const std::function<void(ingest::Mesh&)>& more = {},
+                   const detect::DetectConfig& cfg = {}) {
   sim::scan::SynthScan scan = sim::scan::synthesize_scan(o);
   ingest::Mesh mesh;
   mesh.vertices = scan.vertices;
   mesh.triangles = scan.triangles;
   if (more) more(mesh);
   ScanRun r;
-  r.det = detect::detect(mesh, detect::DetectConfig{});
+  r.det = detect::detect(mesh, cfg);
   const report::TruthFile truth = report::truth_from_scan(scan);
   report::DefectsFile found;
   for (const auto& f : r.det.defects)

@@ -142,10 +142,10 @@ struct CharacterLinePatch {
   static constexpr double kStep = 0.003, kWidth = 0.012;
   const Eigen::Vector2d along{std::cos(0.52), std::sin(0.52)}, across{-along.y(), along.x()};
   const Eigen::Vector2d centre{0.15, 0.10};
-  const std::vector<Planted> planted{{-0.08, 0.0, 0.016, -3e-4},
-                                     {-0.02, 0.0, 0.014, 2e-4},
-                                     {0.05, 0.006 + 0.010 + 0.006, 0.020, -2e-4},
-                                     {0.10, -(0.006 + 0.007 + 0.009), 0.014, 2.5e-4}};
+  std::vector<Planted> planted{{-0.08, 0.0, 0.016, -3e-4},
+                               {-0.02, 0.0, 0.014, 2e-4},
+                               {0.05, 0.006 + 0.010 + 0.006, 0.020, -2e-4},
+                               {0.10, -(0.006 + 0.007 + 0.009), 0.014, 2.5e-4}};
 
   ingest::Mesh mesh() const {
     const auto height_at = [&](double x, double y) {
@@ -205,17 +205,49 @@ TEST(Detect, DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt) {
   line.expect_found_alone(detect::detect(line.mesh(), along_features_on()));
 }
 
+TEST(Detect, ADefectAcrossALinesFlankIsReportedOnce) {
+  // Wide dents and bumps centred on the flank's steep middle, where the profile along the
+  // line is least sure: the candidates there are cut in two along the line, and each half
+  // read as a defect of its own.
+  CharacterLinePatch line;
+  line.planted = {{-0.08, 0.0, 0.024, -2.5e-4}, {0.0, 0.002, 0.025, 3e-4}, {0.08, -0.002, 0.022, -2e-4}};
+  line.expect_found_alone(detect::detect(line.mesh(), along_features_on()));
+}
+
+TEST(Detect, NoFalseDefectsAlongAHandlesRim) {
+  if (kSanitized) GTEST_SKIP() << "2 doors through the along stage: run by the native preset";
+  // Doors of `scripts/eval-detect`'s features class (seeds 17 and 18): 16 defects 4-35 mm
+  // beside the handle, crease, border and window. Round a handle's ends the profiles
+  // along it are uncertain (the flanks disagree), and a box mean that reached from there
+  // into pixels with a sure profile or none took the residual of that stretch with it:
+  // tested against its own pixel's uncertainty alone, it gave three false defects on the
+  // first door.
+  for (const std::uint64_t seed : {17u, 18u}) {
+    sim::scan::ScanOptions o;
+    o.seed = seed;
+    o.shape.width = 0.9, o.shape.height = 0.7;
+    o.spacing = 0.0006, o.defects = 0;
+    o.near_features = {0.004, 0.009, 0.018, 0.035};
+    o.min_diameter = 0.009, o.max_diameter = 0.025, o.min_depth = 1e-4, o.max_depth = 1e-3;
+    const ScanRun r = run(o, {}, along_features_on());
+    EXPECT_EQ(r.eval.false_alarms, 0) << "seed " << seed;
+    EXPECT_GE(r.eval.matched, r.eval.truth - 2) << "seed " << seed;
+  }
+}
+
 TEST(Detect, FlyingPixelsOnACharacterLineRaiseFewDefectsAlongIt) {
-  // (One patch runs the same code under the sanitizer: the test above.)
+  // (One patch runs the same code under the sanitizer:
+  // DefectsOnAndBesideASmoothCharacterLineAreFoundAlongIt.)
   if (kSanitized)
     GTEST_SKIP() << "8 patches through the along stage, over 15 min there: run by the native preset";
   // 3 samples in 1000 thrown 1-10 mm along their rays, either way, on 8 patches. A thrown
   // sample moves its pixel's mean point by up to millimetres, and the heights of every
-  // pixel whose plane or profile takes it in. With such pixels left out of the heights
-  // (spikes, and pixels off their neighbours' plane), 26 of the 32 planted defects are
-  // reported (within 3 mm, of their kind, height within 25 %) and 12 other findings
-  // (false, or a planted one's height off); with them in, 10 of 32 and 64 others,
-  // 0.04-1.5 mm high.
+  // pixel whose plane or profile takes it in; its needle triangles pull a neighbouring
+  // pixel too. With such pixels left out of the heights (spikes, and pixels off the plane
+  // of their neighbours less one far off it), all 32 planted defects are reported (within
+  // 3 mm, of their kind, height within 25 %) with 1 other finding (false, or a planted
+  // one's height off). Testing each pixel against all 8 neighbours gave 28 and 11; with
+  // no thrown pixel left out, 10 and 64, 0.04-1.5 mm high.
   const CharacterLinePatch line;
   int reported = 0, false_defects = 0;
   for (std::uint64_t seed = 5; seed <= 12; ++seed) {
@@ -232,8 +264,8 @@ TEST(Detect, FlyingPixelsOnACharacterLineRaiseFewDefectsAlongIt) {
     reported += found;
     false_defects += static_cast<int>(det.defects.size()) - found;
   }
-  EXPECT_GE(reported, 24);
-  EXPECT_LE(false_defects, 15);
+  EXPECT_GE(reported, 30);
+  EXPECT_LE(false_defects, 4);
 }
 
 TEST(Detect, AWallFarBehindThePanelIsLeftOut) {
