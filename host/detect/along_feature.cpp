@@ -161,7 +161,7 @@ bool plane_round(const HeightMap& map, int r, int c, double u, double v, double 
     }
   Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
   if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-3)) return false;
-  Eigen::Vector3d x = ldlt.solve(atb);
+  const Eigen::Vector3d x = ldlt.solve(atb);
   // Σ residual² = Σ dw² − xᵀ Aᵀb at the least-squares solution.
   const auto rms_of = [](double sum_w2, const Eigen::Vector3d& fit, const Eigen::Vector3d& sum_bw, int n) {
     return n > 3 ? std::sqrt(std::max(0.0, sum_w2 - fit.dot(sum_bw)) / (n - 3)) : 0.0;
