@@ -12,6 +12,7 @@
 #include "dentmark/common/nth_smallest.h"
 #include "design_rules.h"
 #include "deviation.h"
+#include "findings.h"
 #include "patch_normal.h"
 
 namespace dentmark::detect {
@@ -492,8 +493,8 @@ std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatur
     d.height = peak;
     d.diameter = std::max(map.pixel, 4.0 * std::sqrt(half * map.pixel * map.pixel / std::numbers::pi));
     if (d.diameter < kMinDiameter) continue;
-    d.area = std::numbers::pi * 0.25 * d.diameter * d.diameter;
-    d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
+    d.area = disc_area(d.diameter);
+    d.score = score_of(snr, cfg.detection_sigma);
     d.defect_class = peak < 0 ? protocol::DefectClass::kDent : protocol::DefectClass::kBump;
     f.reason = peak < 0 ? "depression beside or on a design feature (out of its profile along it)"
                         : "protrusion beside or on a design feature (out of its profile along it)";
@@ -508,6 +509,8 @@ std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatur
 // where its profile is least sure, the steep middle, and its halves would read as two.
 // The merged finding keeps the stronger one's height and normal; its centre is the
 // pieces' area-weighted mean and its diameter spans both. pixels are kept in step.
+// (order_findings joins splits too, but only a centre within half the larger diameter:
+// the halves either side of a flank lie further apart.)
 std::vector<Finding> one_per_defect(std::vector<Finding> found,
                                     std::vector<std::vector<std::int32_t>>& pixels) {
   std::vector<std::size_t> order(found.size());
@@ -532,7 +535,7 @@ std::vector<Finding> one_per_defect(std::vector<Finding> found,
     const double span = (strong.position - weak.position).norm() + 0.5 * (strong.diameter + weak.diameter);
     strong.position = (a * strong.position + b * weak.position) / (a + b);
     strong.diameter = std::max(strong.diameter, span);
-    strong.area = std::numbers::pi * 0.25 * strong.diameter * strong.diameter;
+    strong.area = disc_area(strong.diameter);
     found[*into].pixels += found[i].pixels;
     pixels[*into].insert(pixels[*into].end(), pixels[i].begin(), pixels[i].end());
   }

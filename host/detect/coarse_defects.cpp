@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "findings.h"
+
 namespace dentmark::detect {
 namespace {
 
@@ -127,9 +129,9 @@ Finding coarse_finding(const VertexGroup& group, const ingest::MeshView& mesh,
   d.normal = normal;
   d.height = height;
   d.diameter = 4.0 * spacing * std::sqrt(static_cast<double>(over_half) / std::numbers::pi);
-  d.area = std::numbers::pi * d.diameter * d.diameter / 4.0;
+  d.area = disc_area(d.diameter);
   const double snr = std::abs(height) / sigma;
-  d.score = 1.0 - std::exp(-snr / (2.0 * detection_sigma));
+  d.score = score_of(snr, detection_sigma);
   return f;
 }
 

@@ -201,9 +201,9 @@ Finding classify_candidate(const Candidate& comp, const Measurement& m, const Ei
   d.normal = normal;
   d.height = m.height;
   d.diameter = std::max(map.pixel, 4.0 * m.half_radius);
-  d.area = std::numbers::pi * 0.25 * d.diameter * d.diameter;
+  d.area = disc_area(d.diameter);
   const double snr = std::abs(m.peak_deviation) / sigma3;
-  d.score = 1.0 - std::exp(-snr / (2.0 * cfg.detection_sigma));
+  d.score = score_of(snr, cfg.detection_sigma);
   if (outlier || m.single_sample) {
     d.defect_class = protocol::DefectClass::kNoise;
     f.reason = "isolated spike (outlier)";

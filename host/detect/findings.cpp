@@ -43,7 +43,7 @@ Finding hole_finding(const HoleRegion& hole, const HeightMap& map, const std::ve
   d.position = map.to_scan(pu, pv, nw > 0 ? sw / nw : 0.0);
   d.normal = patch_normal(map, normal_patch, pr, pc, hole_zone);
   d.diameter = hole.diameter;
-  d.area = std::numbers::pi * 0.25 * hole.diameter * hole.diameter;
+  d.area = disc_area(hole.diameter);
   d.height = 0.0;  // no surface to measure
   d.score = 1.0 - std::exp(-static_cast<double>(hole.behind) / 4.0);
   char why[96];

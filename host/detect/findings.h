@@ -2,6 +2,8 @@
 // Findings as reported: through-holes turned into findings, and the final order of the
 // defect list.
 
+#include <cmath>
+#include <numbers>
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
@@ -9,6 +11,17 @@
 #include "holes.h"
 
 namespace dentmark::detect {
+
+// A defect's area: the disc of its diameter (m²).
+inline double disc_area(double diameter) {
+  return std::numbers::pi * 0.25 * diameter * diameter;
+}
+
+// A defect's score in [0, 1): 1 - exp(-snr / (2 detection_sigma)), snr its peak over the
+// noise; a defect at the detection threshold scores 0.39.
+inline double score_of(double snr, double detection_sigma) {
+  return 1.0 - std::exp(-snr / (2.0 * detection_sigma));
+}
 
 // A through-hole as a defect: its centre on the reference surface 'ref' (or, where no
 // see-through pixel carries it, on the skin around), its normal from the skin around it
