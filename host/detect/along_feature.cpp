@@ -23,6 +23,7 @@ constexpr double kFlankFar = 0.045;        // m
 constexpr double kFlankStep = 0.002;       // m between flank samples (at least a pixel)
 constexpr double kWallSlope = 0.8;         // steeper than a character line's flank (up to ~0.5)
 constexpr double kWallReach = 0.003;       // m round a wall: its rounded rims
+constexpr double kWallFoot = 0.005;        // m round a grown wall: no defect's peak is read there
 constexpr double kPlainEdgeReach = 0.035;  // m from the border zone: no plain deviation
 constexpr double kEdgeReach = 0.012;       // m from the border zone: left alone
 constexpr double kMinDiameter = 0.006;     // m: narrower pieces are the line's own remnants
@@ -285,12 +286,12 @@ cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
 }  // namespace
 
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
-                                    const cv::Mat& zone, const cv::Mat& blocked) {
+                                    const cv::Mat& zone, const cv::Mat& blocked, const cv::Mat& undirecting) {
   const int rows = dev.rows, cols = dev.cols;
   const double pixel = map.pixel;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   AlongFeature out{cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)),
-                   cv::Mat(rows, cols, CV_32F, cv::Scalar(nan))};
+                   cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat()};
   const std::vector<double> offsets = flank_offsets(pixel);
   const int n = static_cast<int>(offsets.size());
   const int need = static_cast<int>(std::ceil(kFlankFull * n));
@@ -324,9 +325,24 @@ AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height,
   cv::dilate(wall, wall,
              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * wall_reach + 1, 2 * wall_reach + 1)));
   flank.setTo(std::numeric_limits<float>::quiet_NaN(), wall);
-  cv::Mat jx = gx.mul(gx), jy = gy.mul(gy), jxy_ = gx.mul(gy);
+  out.wall = wall;
   const double sg = kTensorSigma / pixel;
-  for (cv::Mat* m : {&jx, &jy, &jxy_}) cv::GaussianBlur(*m, *m, cv::Size(0, 0), sg);
+  const auto tensor = [sg](const cv::Mat& dx, const cv::Mat& dy) {
+    std::array<cv::Mat, 3> j{dx.mul(dx), dy.mul(dy), dx.mul(dy)};
+    for (cv::Mat& m : j) cv::GaussianBlur(m, m, cv::Size(0, 0), sg);
+    return j;
+  };
+  auto [jx, jy, jxy_] = tensor(gx, gy);
+  if (!undirecting.empty() && cv::countNonZero(undirecting) > 0) {
+    // The undirecting pixels' gradients (and those a Sobel takes them into) have no say
+    // round them; their own direction is still their neighbourhood's.
+    cv::Mat gone, ux = gx.clone(), uy = gy.clone();
+    cv::dilate(undirecting, gone, cv::Mat());
+    ux.setTo(0.0f, gone), uy.setTo(0.0f, gone);
+    const auto [kx, ky, kxy] = tensor(ux, uy);
+    const cv::Mat others = ~undirecting;
+    kx.copyTo(jx, others), ky.copyTo(jy, others), kxy.copyTo(jxy_, others);
+  }
 #pragma omp parallel
   {
     std::vector<FlankSample> xs;
@@ -446,7 +462,8 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
 // The candidates' connected pieces that have the shape and height of a defect, away
 // from defects already reported, as findings with their pixels.
 std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatureScene& s,
-                                 const DetectConfig& cfg, std::vector<std::vector<std::int32_t>>& pixels) {
+                                 const cv::Mat& wall_foot, const DetectConfig& cfg,
+                                 std::vector<std::vector<std::int32_t>>& pixels) {
   const HeightMap& map = s.map;
   const int rows = map.rows, cols = map.cols;
   const cv::Mat& finest = rc.finest;
@@ -464,10 +481,12 @@ std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatur
     const CandidateShape shape = shape_of(px, map, s.edge_zone);
     if (design_reason(shape, cfg) || shape.length < std::max(cfg.min_diameter, 2.5 * map.pixel)) continue;
     // Peak of the finest scale's mean; the half-height region gives centre and size.
+    // Not at a wall's foot: where a wall turns (a handle's corner) the foot's own
+    // rounding stands out of a profile along the rim, which runs through flat flanks.
     float peak = 0.0f;
     for (const std::int32_t q : px) {
       const float m = finest.ptr<float>()[q];
-      if (std::isfinite(m) && std::abs(m) > std::abs(peak)) peak = m;
+      if (std::isfinite(m) && std::abs(m) > std::abs(peak) && !wall_foot.data[q]) peak = m;
     }
     const double snr = std::abs(peak) / std::max(rc.finest_sigma, 1e-9);
     if (std::abs(peak) < cfg.min_height || snr < cfg.detection_sigma) continue;
@@ -577,15 +596,21 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
   plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
   const cv::Mat height = heights_of(map, s.excluded | thrown_pixels(map, zone, cfg.detection_sigma));
-  AlongFeature along = along_feature_residual(map, height, plain, zone, near_edge);
+  AlongFeature along = along_feature_residual(map, height, plain, zone, near_edge, cv::Mat());
+  cv::Mat wall_foot;
+  const int foot_reach = std::max(1, static_cast<int>(std::lround(kWallFoot / map.pixel)));
+  cv::dilate(along.wall, wall_foot,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * foot_reach + 1, 2 * foot_reach + 1)));
   cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
   std::vector<std::vector<std::int32_t>> first_px;
-  findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, cfg, first_px);
+  findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, wall_foot, cfg, first_px);
   for (const auto& px : first_px)
     for (const std::int32_t q : px) found.data[q] = 255;
   cv::dilate(found, found, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
   const cv::Mat blocked = found | near_edge;
-  // Only pixels with a finding within a flank's reach see their flanks change.
+  // Only pixels with a finding within a flank's reach see their flanks change. A
+  // finding's gradients turn the direction of the feature beside it as well, so they
+  // are left out of it.
   const int flank_reach = static_cast<int>(std::ceil(kFlankFar / map.pixel));
   cv::Mat again;
   cv::dilate(
@@ -593,13 +618,13 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
-    const AlongFeature second = along_feature_residual(map, height, plain, again, blocked);
+    const AlongFeature second = along_feature_residual(map, height, plain, again, blocked, found);
     second.residual.copyTo(along.residual, again);
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);
   }
-  return one_per_defect(findings_of(residual_candidates(along, s, zone, blocked, cfg), s, cfg, pixels),
-                        pixels);
+  return one_per_defect(
+      findings_of(residual_candidates(along, s, zone, blocked, cfg), s, wall_foot, cfg, pixels), pixels);
 }
 
 }  // namespace dentmark::detect

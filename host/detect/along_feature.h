@@ -48,14 +48,16 @@ namespace dentmark::detect {
 // along the feature (residual, along the normal), on the pixels set in zone (CV_8U);
 // where no direction dominates, dev (CV_32F deviation, m) instead; NaN elsewhere, and
 // where either flank has under 60 % of its samples seen. Pixels set in blocked (CV_8U)
-// are never flank samples.
+// are never flank samples; those set in undirecting (CV_8U, may be empty) have no say
+// in the direction of the feature round them.
 struct AlongFeature {
   cv::Mat residual;     // CV_32F, m
   cv::Mat uncertainty;  // CV_32F, m: how far off the profile may be at the pixel
   cv::Mat angle;        // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
+  cv::Mat wall;         // CV_8U: walls (a handle's sides and ends), grown over their rounded rims
 };
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
-                                    const cv::Mat& zone, const cv::Mat& blocked);
+                                    const cv::Mat& zone, const cv::Mat& blocked, const cv::Mat& undirecting);
 
 // What the scene around a design feature offers the search for local defects.
 struct AlongFeatureScene {

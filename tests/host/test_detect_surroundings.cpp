@@ -214,6 +214,18 @@ TEST(Detect, ADefectAcrossALinesFlankIsReportedOnce) {
   line.expect_found_alone(detect::detect(line.mesh(), along_features_on()));
 }
 
+// A door of `scripts/eval-detect`'s features class (its options for the project's
+// generator): 16 defects 4-35 mm beside the handle, crease, border and window.
+sim::scan::ScanOptions features_class_door(std::uint64_t seed) {
+  sim::scan::ScanOptions o;
+  o.seed = seed;
+  o.shape.width = 0.9, o.shape.height = 0.7;
+  o.spacing = 0.0006, o.defects = 0;
+  o.near_features = {0.004, 0.009, 0.018, 0.035};
+  o.min_diameter = 0.009, o.max_diameter = 0.025, o.min_depth = 1e-4, o.max_depth = 1e-3;
+  return o;
+}
+
 TEST(Detect, NoFalseDefectsAlongAHandlesRim) {
   if (kSanitized) GTEST_SKIP() << "2 doors through the along stage: run by the native preset";
   // Doors of `scripts/eval-detect`'s features class (seeds 17 and 18): 16 defects 4-35 mm
@@ -223,16 +235,31 @@ TEST(Detect, NoFalseDefectsAlongAHandlesRim) {
   // tested against its own pixel's uncertainty alone, it gave three false defects on the
   // first door.
   for (const std::uint64_t seed : {17u, 18u}) {
-    sim::scan::ScanOptions o;
-    o.seed = seed;
-    o.shape.width = 0.9, o.shape.height = 0.7;
-    o.spacing = 0.0006, o.defects = 0;
-    o.near_features = {0.004, 0.009, 0.018, 0.035};
-    o.min_diameter = 0.009, o.max_diameter = 0.025, o.min_depth = 1e-4, o.max_depth = 1e-3;
-    const ScanRun r = run(o, {}, along_features_on());
+    const ScanRun r = run(features_class_door(seed), {}, along_features_on());
     EXPECT_EQ(r.eval.false_alarms, 0) << "seed " << seed;
     EXPECT_GE(r.eval.matched, r.eval.truth - 2) << "seed " << seed;
   }
+}
+
+TEST(Detect, ADefectBesideACreaseLeavesNoGhostBesideIt) {
+  if (kSanitized) GTEST_SKIP() << "a door through the along stage: run by the native preset";
+  // The features class's door 8: a 0.9 mm deep dent 4 mm from the crease. Its gradients
+  // turned the direction of the crease beside it by ~20 degrees, more than the refinement
+  // reaches, and the profile across the crease left a 0.17 mm false bump 10 mm from the
+  // dent. Found in the first run, the dent has no say in the direction in the second.
+  const ScanRun r = run(features_class_door(8), {}, along_features_on());
+  EXPECT_EQ(r.eval.false_alarms, 0);
+  EXPECT_GE(r.eval.matched, r.eval.truth - 2);
+}
+
+TEST(Detect, TheFootOfAHandlesCornerIsNoBump) {
+  if (kSanitized) GTEST_SKIP() << "a door through the along stage: run by the native preset";
+  // The features class's door 13. Where the handle's wall turns at its end, the foot's own
+  // rounding stands 0.9 mm out of a profile along the rim, which runs through flat
+  // flanks; a piece whose peak lies only there is no defect.
+  const ScanRun r = run(features_class_door(13), {}, along_features_on());
+  EXPECT_EQ(r.eval.false_alarms, 0);
+  EXPECT_GE(r.eval.matched, r.eval.truth - 2);
 }
 
 TEST(Detect, FlyingPixelsOnACharacterLineRaiseFewDefectsAlongIt) {
