@@ -29,10 +29,10 @@
 // residual's spread along the line through them (a steep flank's small errors repeat
 // with the pixel grid's phase). A defect in a pixel's flanks leaves a ghost of the other
 // sign 13-45 mm along the line each side of it, so the search runs twice, the first
-// run's findings left out of the second's flanks.
+// run's findings left out of the second's flanks and of the direction round them.
 //
 // Off by default (DetectConfig::along_features): it finds most defects beside and on
-// features, but raises false alarms (1-4 per m², up to 18 with flying pixels; see
+// features, but raises false alarms (0.3-0.9 per m², 6.6 with flying pixels; see
 // docs/detection.md §12).
 
 #include <opencv2/core/mat.hpp>
