@@ -283,112 +283,152 @@ cv::Mat noise_along(const cv::Mat& m, const cv::Mat& angle, double pixel) {
   return out;
 }
 
+// The heights' gradient (Sobel, CV_32F) less its mean over kSlopeSigma: the panel's own
+// slope would otherwise outweigh a shallow line. Only gradients whose 3 x 3
+// neighbourhood is all surface count: an empty pixel's height is no height at all.
+struct Gradient {
+  cv::Mat gx, gy;
+};
+Gradient gradient_less_panel_slope(const cv::Mat& height, double pixel) {
+  cv::Mat h0 = height.clone(), seen = (height == height), whole;
+  cv::patchNaNs(h0, 0.0);
+  cv::erode(seen, whole, cv::Mat());
+  Gradient g;
+  cv::Mat mx, my, weight, wsum;
+  cv::Sobel(h0, g.gx, CV_32F, 1, 0, 3);
+  cv::Sobel(h0, g.gy, CV_32F, 0, 1, 3);
+  whole.convertTo(weight, CV_32F, 1.0 / 255.0);
+  g.gx = g.gx.mul(weight), g.gy = g.gy.mul(weight);
+  const cv::Size any(0, 0);
+  cv::GaussianBlur(weight, wsum, any, kSlopeSigma / pixel);
+  cv::GaussianBlur(g.gx, mx, any, kSlopeSigma / pixel);
+  cv::GaussianBlur(g.gy, my, any, kSlopeSigma / pixel);
+  wsum = cv::max(wsum, 1e-3f);
+  g.gx -= mx.mul(weight) / wsum, g.gy -= my.mul(weight) / wsum;
+  return g;
+}
+
+// Walls (CV_8U): a handle's sides and ends, steeper than any character line's flank,
+// grown over their rounded rims. (A Sobel reads 8 pixels x the slope.)
+cv::Mat walls_of(const Gradient& g, double pixel) {
+  cv::Mat slope, wall;
+  cv::magnitude(g.gx, g.gy, slope);
+  cv::compare(slope, kWallSlope * 8.0 * pixel, wall, cv::CMP_GT);
+  const int wall_reach = std::max(1, static_cast<int>(std::lround(kWallReach / pixel)));
+  cv::dilate(wall, wall,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * wall_reach + 1, 2 * wall_reach + 1)));
+  return wall;
+}
+
+// The structure tensor of g over a Gaussian of kTensorSigma. The gradients of the pixels
+// set in undirecting (CV_8U, may be empty), and those a Sobel takes them into, have no
+// say round them; their own tensor is still their neighbourhood's.
+struct Tensor {
+  cv::Mat xx, yy, xy;
+  // The feature's direction at (r, c): across the dominant gradient, where that is
+  // clearly one direction (false: no line to take out).
+  bool direction(int r, int c, double& a) const {
+    const float jxx = xx.at<float>(r, c), jyy = yy.at<float>(r, c), jxy = xy.at<float>(r, c);
+    const float tr = jxx + jyy;
+    const float aniso = std::sqrt((jxx - jyy) * (jxx - jyy) + 4 * jxy * jxy);
+    if (!(tr > 0.0f && aniso >= kCoherence * tr)) return false;
+    a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
+    return true;
+  }
+};
+Tensor structure_tensor(const Gradient& g, double pixel, const cv::Mat& undirecting) {
+  const double sg = kTensorSigma / pixel;
+  const auto blurred = [sg](const cv::Mat& dx, const cv::Mat& dy) {
+    Tensor t{dx.mul(dx), dy.mul(dy), dx.mul(dy)};
+    for (cv::Mat* m : {&t.xx, &t.yy, &t.xy}) cv::GaussianBlur(*m, *m, cv::Size(0, 0), sg);
+    return t;
+  };
+  Tensor t = blurred(g.gx, g.gy);
+  if (undirecting.empty() || cv::countNonZero(undirecting) == 0) return t;
+  cv::Mat gone, ux = g.gx.clone(), uy = g.gy.clone();
+  cv::dilate(undirecting, gone, cv::Mat());
+  ux.setTo(0.0f, gone), uy.setTo(0.0f, gone);
+  const Tensor k = blurred(ux, uy);
+  const cv::Mat others = ~undirecting;
+  k.xx.copyTo(t.xx, others), k.yy.copyTo(t.yy, others), k.xy.copyTo(t.xy, others);
+  return t;
+}
+
+// Profiles through one pixel along any direction (profile_at), with their buffers.
+class ProfileSearch {
+ public:
+  ProfileSearch(const cv::Mat& flank, double pixel)
+      : flank_(flank),
+        offsets_(flank_offsets(pixel)),
+        pixel_(pixel),
+        need_(static_cast<int>(std::ceil(kFlankFull * static_cast<double>(offsets_.size())))) {
+    xs_.reserve(2 * offsets_.size());
+  }
+  // The better of best and the profile along a (best_a set to a when it is).
+  void try_angle(int r, int c, double a, Profile& best, double& best_a) {
+    Profile f;
+    if (profile_at(flank_, r, c, a, offsets_, pixel_, need_, xs_, residual_, scratch_, f) &&
+        f.spread < best.spread)
+      best = f, best_a = a;
+  }
+  // Halving steps round best_a, from 0.05 rad down to a quarter degree, to the direction
+  // along which the profile fits best.
+  void refine(int r, int c, Profile& best, double& best_a) {
+    for (double da = 0.05; da > 0.004; da /= 2) {
+      const double a0 = best_a;
+      for (const double a : {a0 - da, a0 + da}) try_angle(r, c, a, best, best_a);
+    }
+  }
+
+ private:
+  const cv::Mat& flank_;
+  std::vector<double> offsets_;
+  double pixel_;
+  int need_;
+  std::vector<FlankSample> xs_;
+  std::vector<float> residual_, scratch_;
+};
+
 }  // namespace
 
 AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
                                     const cv::Mat& zone, const cv::Mat& blocked, const cv::Mat& undirecting) {
   const int rows = dev.rows, cols = dev.cols;
-  const double pixel = map.pixel;
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  const Gradient g = gradient_less_panel_slope(height, map.pixel);
   AlongFeature out{cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)),
-                   cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat()};
-  const std::vector<double> offsets = flank_offsets(pixel);
-  const int n = static_cast<int>(offsets.size());
-  const int need = static_cast<int>(std::ceil(kFlankFull * n));
-  cv::Mat flank = height.clone();  // the heights the profiles are fitted to
-  flank.setTo(std::numeric_limits<float>::quiet_NaN(), blocked);
-  // The direction of a feature: the structure tensor, over a Gaussian of kTensorSigma, of
-  // the heights' gradient less its mean over kSlopeSigma (the panel's own slope, which
-  // would otherwise outweigh a shallow line).
-  // Only gradients whose 3 x 3 neighbourhood is all surface count: an empty pixel's
-  // height is no height at all.
-  cv::Mat h0 = height.clone(), seen = (height == height), whole;
-  cv::patchNaNs(h0, 0.0);
-  cv::erode(seen, whole, cv::Mat());
-  cv::Mat gx, gy, mx, my, weight, wsum;
-  cv::Sobel(h0, gx, CV_32F, 1, 0, 3);
-  cv::Sobel(h0, gy, CV_32F, 0, 1, 3);
-  whole.convertTo(weight, CV_32F, 1.0 / 255.0);
-  gx = gx.mul(weight), gy = gy.mul(weight);
-  const cv::Size any(0, 0);
-  cv::GaussianBlur(weight, wsum, any, kSlopeSigma / pixel);
-  cv::GaussianBlur(gx, mx, any, kSlopeSigma / pixel);
-  cv::GaussianBlur(gy, my, any, kSlopeSigma / pixel);
-  wsum = cv::max(wsum, 1e-3f);
-  gx -= mx.mul(weight) / wsum, gy -= my.mul(weight) / wsum;
-  // Walls (a handle's sides and ends, steeper than any character line's flank) are no
-  // skin: not looked at, and not in any profile. (A Sobel reads 8 pixels x the slope.)
-  cv::Mat slope, wall;
-  cv::magnitude(gx, gy, slope);
-  cv::compare(slope, kWallSlope * 8.0 * pixel, wall, cv::CMP_GT);
-  const int wall_reach = std::max(1, static_cast<int>(std::lround(kWallReach / pixel)));
-  cv::dilate(wall, wall,
-             cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * wall_reach + 1, 2 * wall_reach + 1)));
-  flank.setTo(std::numeric_limits<float>::quiet_NaN(), wall);
-  out.wall = wall;
-  const double sg = kTensorSigma / pixel;
-  const auto tensor = [sg](const cv::Mat& dx, const cv::Mat& dy) {
-    std::array<cv::Mat, 3> j{dx.mul(dx), dy.mul(dy), dx.mul(dy)};
-    for (cv::Mat& m : j) cv::GaussianBlur(m, m, cv::Size(0, 0), sg);
-    return j;
-  };
-  auto [jx, jy, jxy_] = tensor(gx, gy);
-  if (!undirecting.empty() && cv::countNonZero(undirecting) > 0) {
-    // The undirecting pixels' gradients (and those a Sobel takes them into) have no say
-    // round them; their own direction is still their neighbourhood's.
-    cv::Mat gone, ux = gx.clone(), uy = gy.clone();
-    cv::dilate(undirecting, gone, cv::Mat());
-    ux.setTo(0.0f, gone), uy.setTo(0.0f, gone);
-    const auto [kx, ky, kxy] = tensor(ux, uy);
-    const cv::Mat others = ~undirecting;
-    kx.copyTo(jx, others), ky.copyTo(jy, others), kxy.copyTo(jxy_, others);
-  }
+                   cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), walls_of(g, map.pixel)};
+  // The heights the profiles are fitted to: walls are no skin, neither looked at nor in
+  // any profile.
+  cv::Mat flank = height.clone();
+  flank.setTo(nan, blocked);
+  flank.setTo(nan, out.wall);
+  const Tensor tensor = structure_tensor(g, map.pixel, undirecting);
 #pragma omp parallel
   {
-    std::vector<FlankSample> xs;
-    std::vector<float> residual, scratch;
-    xs.reserve(static_cast<std::size_t>(2 * n));
+    ProfileSearch search(flank, map.pixel);
 #pragma omp for schedule(dynamic, 8)
     for (int r = 0; r < rows; ++r) {
       const std::uint8_t* zr = zone.ptr<std::uint8_t>(r);
       for (int c = 0; c < cols; ++c) {
         const float here = dev.at<float>(r, c), h = height.at<float>(r, c);
-        if (!zr[c] || !std::isfinite(h) || wall.at<std::uint8_t>(r, c)) continue;
-        // Along the feature: across the heights' dominant gradient, where that is
-        // clearly one direction; elsewhere there is no line to take out.
-        const float jxx = jx.at<float>(r, c), jyy = jy.at<float>(r, c), jxy = jxy_.at<float>(r, c);
-        const float tr = jxx + jyy;
-        const float aniso = std::sqrt((jxx - jyy) * (jxx - jyy) + 4 * jxy * jxy);
-        Profile best{0.0f, std::numeric_limits<float>::infinity()}, f;
+        if (!zr[c] || !std::isfinite(h) || out.wall.at<std::uint8_t>(r, c)) continue;
+        Profile best{0.0f, std::numeric_limits<float>::infinity()};
         double best_a = 0.0;
-        if (tr > 0.0f && aniso >= kCoherence * tr) {
-          best_a = 0.5 * std::atan2(2.0 * jxy, static_cast<double>(jxx - jyy)) + 0.5 * std::numbers::pi;
-          if (profile_at(flank, r, c, best_a, offsets, pixel, need, xs, residual, scratch, f)) best = f;
+        if (tensor.direction(r, c, best_a)) {
+          search.try_angle(r, c, best_a, best, best_a);
         } else if (std::isfinite(here)) {
           // No direction dominates (a rim beside a wall, a flat stretch): the direction,
           // of eight, along which the surface's profile fits best. Not near the border,
           // whose rolled edge bends every profile that reaches it.
-          for (int i = 0; i < 8; ++i) {
-            const double a = i * std::numbers::pi / 8.0;
-            if (profile_at(flank, r, c, a, offsets, pixel, need, xs, residual, scratch, f) &&
-                f.spread < best.spread)
-              best = f, best_a = a;
-          }
+          for (int i = 0; i < 8; ++i) search.try_angle(r, c, i * std::numbers::pi / 8.0, best, best_a);
           if (!std::isfinite(best.spread)) {
             out.residual.at<float>(r, c) = here;
             out.uncertainty.at<float>(r, c) = 0.0f;
             continue;
           }
         }
-        // Refine the direction: halving steps round it, down to a quarter degree, to the
-        // one along which the profile fits best.
-        for (double da = 0.05; da > 0.004; da /= 2) {
-          const double a0 = best_a;
-          for (const double a : {a0 - da, a0 + da})
-            if (profile_at(flank, r, c, a, offsets, pixel, need, xs, residual, scratch, f) &&
-                f.spread < best.spread)
-              best = f, best_a = a;
-        }
+        search.refine(r, c, best, best_a);
         if (!std::isfinite(best.spread)) continue;
         const std::size_t k =
             static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
