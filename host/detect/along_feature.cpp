@@ -188,14 +188,47 @@ bool plane_round(const HeightMap& map, int r, int c, double u, double v, double 
   return true;
 }
 
-// The map's heights at the pixels' centres (CV_32F, m; NaN where no surface): the plane
-// through the mean points of the pixel and its surface neighbours (3 x 3), at the
-// centre. A pixel's mean point lies anywhere in it, and on a character line's flank
-// (slopes up to 1:3) its height alone is off by up to a sixth of a pixel's size, which
-// along the line reads as a streak of false defects. Pixels set in skip (CV_8U: spikes,
-// holes) have no height and are in no plane: one thrown sample moves its pixel's mean
-// point by millimetres, and every profile whose flank passes it.
-cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip) {
+// The least-squares quadric w = a + b x + c y + d x^2 + e x y + f y^2 through the mean
+// points of the surface pixels round (r, c) (3 x 3, none set in skip), x and y in pixels
+// from (u, v): its height a there. False with under 8 points (one degree of freedom
+// left would let it follow their noise) or ill-conditioned.
+bool quadric_round(const HeightMap& map, int r, int c, double u, double v, const cv::Mat& skip,
+                   double& height) {
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+  Vector6d atb = Vector6d::Zero();
+  int points = 0;
+  for (int rr = std::max(0, r - 1); rr <= std::min(map.rows - 1, r + 1); ++rr)
+    for (int cc = std::max(0, c - 1); cc <= std::min(map.cols - 1, c + 1); ++cc) {
+      const std::size_t q =
+          static_cast<std::size_t>(rr) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(cc);
+      if (!(map.weight[q] > 0.0f) || skip.data[q]) continue;
+      const double x = (map.u[q] - u) / map.pixel, y = (map.v[q] - v) / map.pixel;
+      Vector6d row;
+      row << 1.0, x, y, x * x, x * y, y * y;
+      ata += row * row.transpose(), atb += row * static_cast<double>(map.w[q]);
+      ++points;
+    }
+  if (points < 8) return false;
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-4)) return false;
+  height = ldlt.solve(atb)[0];
+  return true;
+}
+
+// The map's heights at the pixels' centres (CV_32F, m; NaN where no surface): the
+// quadric through the mean points of the pixel and its surface neighbours (3 x 3), at
+// the centre, or their plane where too few are surface for a quadric. A pixel's mean
+// point lies anywhere in it, and on a character line's flank (slopes up to 1:3) its
+// height alone is off by up to a sixth of a pixel's size. A plane through the points
+// takes the slope out but not the curvature: on a line's shoulders (~0.1 /mm) it is
+// off by 10-45 um, by how far the points lie from the centre, which changes with the
+// sampling's phase in the pixel grid. Either error reads along the line as a streak of
+// false defects. Pixels set in skip (CV_8U: spikes, holes) have no height and are in no
+// fit: one thrown sample moves its pixel's mean point by millimetres, and every profile
+// whose flank passes it.
+enum class LocalFit { kPlane, kQuadric };
+cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip, LocalFit fit) {
   cv::Mat h(map.rows, map.cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
 #pragma omp parallel for schedule(static)
   for (int r = 0; r < map.rows; ++r) {
@@ -205,10 +238,14 @@ cv::Mat heights_of(const HeightMap& map, const cv::Mat& skip) {
           static_cast<std::size_t>(r) * static_cast<std::size_t>(map.cols) + static_cast<std::size_t>(c);
       if (!(map.weight[k] > 0.0f) || skip.data[k]) continue;
       const double uc = map.u0 + (c + 0.5) * map.pixel, vc = map.v0 + (r + 0.5) * map.pixel;
+      double quadric = 0.0;
       LocalPlane plane;
       // Too few neighbours for a plane: its own height.
-      hr[c] = plane_round(map, r, c, uc, vc, 0.0, skip, false, plane) ? static_cast<float>(plane.height)
-                                                                      : map.w[k];
+      if (fit == LocalFit::kQuadric && quadric_round(map, r, c, uc, vc, skip, quadric))
+        hr[c] = static_cast<float>(quadric);
+      else
+        hr[c] = plane_round(map, r, c, uc, vc, 0.0, skip, false, plane) ? static_cast<float>(plane.height)
+                                                                        : map.w[k];
     }
   }
   return h;
@@ -391,11 +428,12 @@ class ProfileSearch {
 
 }  // namespace
 
-AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
-                                    const cv::Mat& zone, const cv::Mat& blocked, const cv::Mat& undirecting) {
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& steer,
+                                    const cv::Mat& dev, const cv::Mat& zone, const cv::Mat& blocked,
+                                    const cv::Mat& undirecting) {
   const int rows = dev.rows, cols = dev.cols;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const Gradient g = gradient_less_panel_slope(height, map.pixel);
+  const Gradient g = gradient_less_panel_slope(steer, map.pixel);
   AlongFeature out{cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)),
                    cv::Mat(rows, cols, CV_32F, cv::Scalar(nan)), walls_of(g, map.pixel)};
   // The heights the profiles are fitted to: walls are no skin, neither looked at nor in
@@ -500,10 +538,12 @@ ResidualCandidates residual_candidates(const AlongFeature& along, const AlongFea
 }
 
 // The candidates' connected pieces that have the shape and height of a defect, away
-// from defects already reported, as findings with their pixels.
+// from defects already reported, as findings with their pixels. peaked (CV_8U, may be
+// null) gets the pixels of every piece whose peak stands out, however narrow the part
+// round its peak is.
 std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatureScene& s,
                                  const cv::Mat& wall_foot, const DetectConfig& cfg,
-                                 std::vector<std::vector<std::int32_t>>& pixels) {
+                                 std::vector<std::vector<std::int32_t>>& pixels, cv::Mat* peaked = nullptr) {
   const HeightMap& map = s.map;
   const int rows = map.rows, cols = map.cols;
   const cv::Mat& finest = rc.finest;
@@ -530,6 +570,8 @@ std::vector<Finding> findings_of(const ResidualCandidates& rc, const AlongFeatur
     }
     const double snr = std::abs(peak) / std::max(rc.finest_sigma, 1e-9);
     if (std::abs(peak) < cfg.min_height || snr < cfg.detection_sigma) continue;
+    if (peaked)
+      for (const std::int32_t q : px) peaked->data[q] = 255;
     double sw = 0.0, su = 0.0, sv = 0.0, swz = 0.0;
     int half = 0;
     for (const std::int32_t q : px) {
@@ -635,30 +677,44 @@ std::vector<Finding> defects_along_features(const AlongFeatureScene& s, const De
       s.edge_zone, near_border,
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * border_reach + 1, 2 * border_reach + 1)));
   plain.setTo(std::numeric_limits<float>::quiet_NaN(), near_border);
-  const cv::Mat height = heights_of(map, s.excluded | thrown_pixels(map, zone, cfg.detection_sigma));
-  AlongFeature along = along_feature_residual(map, height, plain, zone, near_edge, cv::Mat());
+  // The profiles are fitted to the quadrics' heights. The direction is read from the
+  // planes', which are less noisy (a 3 x 3 plane's centre carries 1/9 of a point's
+  // variance, a quadric's 5/9): from the quadrics', a crease's direction beside a deep
+  // dent turned enough to leave a false bump beside the dent.
+  const cv::Mat skip = s.excluded | thrown_pixels(map, zone, cfg.detection_sigma);
+  const cv::Mat height = heights_of(map, skip, LocalFit::kQuadric),
+                steer = heights_of(map, skip, LocalFit::kPlane);
+  AlongFeature along = along_feature_residual(map, height, steer, plain, zone, near_edge, cv::Mat());
   cv::Mat wall_foot;
   const int foot_reach = std::max(1, static_cast<int>(std::lround(kWallFoot / map.pixel)));
   cv::dilate(along.wall, wall_foot,
              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * foot_reach + 1, 2 * foot_reach + 1)));
-  cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0));
+  // What the first run found leaves the flanks of the second, and so do its pieces too
+  // narrow to report whose peak stands out: a wide defect centred on a line's flank
+  // leaves a ghost of the other sign in the profiles whose flanks cross it, the ghosts
+  // raise the noise along the line (noise_along) over the defect's own residual, and
+  // only its two sides stand out, as narrow pieces.
+  cv::Mat found(map.rows, map.cols, CV_8U, cv::Scalar(0)), peaked = found.clone();
   std::vector<std::vector<std::int32_t>> first_px;
-  findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, wall_foot, cfg, first_px);
+  findings_of(residual_candidates(along, s, zone, near_edge, cfg), s, wall_foot, cfg, first_px, &peaked);
   for (const auto& px : first_px)
     for (const std::int32_t q : px) found.data[q] = 255;
-  cv::dilate(found, found, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-  const cv::Mat blocked = found | near_edge;
-  // Only pixels with a finding within a flank's reach see their flanks change. A
+  const cv::Mat grow = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
+  cv::dilate(found, found, grow);
+  cv::dilate(peaked, peaked, grow);
+  const cv::Mat blocked = peaked | near_edge;
+  // Only pixels with such a piece within a flank's reach see their flanks change. A
   // finding's gradients turn the direction of the feature beside it as well, so they
-  // are left out of it.
+  // are left out of it (not a narrow piece's: many are a feature's own remnants, and
+  // without them a crease's direction beside a deep dent turned and left a false bump).
   const int flank_reach = static_cast<int>(std::ceil(kFlankFar / map.pixel));
   cv::Mat again;
   cv::dilate(
-      found, again,
+      peaked, again,
       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * flank_reach + 1, 2 * flank_reach + 1)));
   again &= zone;
   if (cv::countNonZero(again) > 0) {
-    const AlongFeature second = along_feature_residual(map, height, plain, again, blocked, found);
+    const AlongFeature second = along_feature_residual(map, height, steer, plain, again, blocked, found);
     second.residual.copyTo(along.residual, again);
     second.uncertainty.copyTo(along.uncertainty, again);
     second.angle.copyTo(along.angle, again);

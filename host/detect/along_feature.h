@@ -7,13 +7,14 @@
 // of the design. Along the line the surface is smooth, a defect is not. So each pixel near
 // the feature is compared with the surface's own profile along the line, from the map's
 // heights and not from the reference, whose errors along a smooth step come in blocks:
-//  - heights at the pixels' centres (a plane through the 3 x 3 mean points), since on a
-//    line's steep flank a pixel's mean point alone is off by up to a sixth of a pixel;
+//  - heights at the pixels' centres (a quadric through the 3 x 3 mean points), since on a
+//    line's steep flank a pixel's mean point alone is off by up to a sixth of a pixel, and
+//    on its curved shoulders a plane through them is off by tens of micrometres;
 //  - no height where a sample was thrown (the deviation's spikes, and pixels off their
 //    neighbours' plane): a flying pixel moves its pixel's mean point by millimetres;
-//  - the direction across the heights' dominant gradient (less the panel's own slope over
-//    20 mm; the structure tensor over 6 mm), refined to a quarter degree to where the
-//    profile fits best;
+//  - the direction across the dominant gradient of less noisy heights (3 x 3 planes),
+//    less the panel's own slope over 20 mm (the structure tensor over 6 mm), refined to
+//    a quarter degree to where the profile fits best;
 //  - the profile: a quadratic in the distance along the line through the heights 13-45 mm
 //    ahead and behind (the panel's slope and curvature along the line), fitted twice,
 //    leaving out samples past 3 sigma; it is uncertain by 4 times the fit's spread or by
@@ -29,10 +30,11 @@
 // residual's spread along the line through them (a steep flank's small errors repeat
 // with the pixel grid's phase). A defect in a pixel's flanks leaves a ghost of the other
 // sign 13-45 mm along the line each side of it, so the search runs twice, the first
-// run's findings left out of the second's flanks and of the direction round them.
+// run's findings (and its pieces too narrow to report) left out of the second's flanks,
+// and its findings out of the direction round them.
 //
 // Off by default (DetectConfig::along_features): it finds most defects beside and on
-// features, but raises false alarms (0.3-0.9 per m², 6.6 with flying pixels; see
+// features, but raises false alarms (0.1-0.3 per m², 4.9 with flying pixels; see
 // docs/detection.md §12).
 
 #include <opencv2/core/mat.hpp>
@@ -45,7 +47,8 @@
 namespace dentmark::detect {
 
 // The heights (CV_32F, m, at the pixels' centres; NaN where none) less their profile
-// along the feature (residual, along the normal), on the pixels set in zone (CV_8U);
+// along the feature (residual, along the normal), on the pixels set in zone (CV_8U),
+// the feature's direction read from steer (heights of the same kind);
 // where no direction dominates, dev (CV_32F deviation, m) instead; NaN elsewhere, and
 // where either flank has under 60 % of its samples seen. Pixels set in blocked (CV_8U)
 // are never flank samples; those set in undirecting (CV_8U, may be empty) have no say
@@ -56,8 +59,9 @@ struct AlongFeature {
   cv::Mat angle;        // CV_32F: the feature's direction (rad, in the map's column-row plane); NaN: none
   cv::Mat wall;         // CV_8U: walls (a handle's sides and ends), grown over their rounded rims
 };
-AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& dev,
-                                    const cv::Mat& zone, const cv::Mat& blocked, const cv::Mat& undirecting);
+AlongFeature along_feature_residual(const HeightMap& map, const cv::Mat& height, const cv::Mat& steer,
+                                    const cv::Mat& dev, const cv::Mat& zone, const cv::Mat& blocked,
+                                    const cv::Mat& undirecting);
 
 // What the scene around a design feature offers the search for local defects.
 struct AlongFeatureScene {
