@@ -190,8 +190,8 @@ bool plane_round(const HeightMap& map, int r, int c, double u, double v, double 
 
 // The least-squares quadric w = a + b x + c y + d x^2 + e x y + f y^2 through the mean
 // points of the surface pixels round (r, c) (3 x 3, none set in skip), x and y in pixels
-// from (u, v): its height a there. False with under 8 points (one degree of freedom
-// left would let it follow their noise) or ill-conditioned.
+// from (u, v): its height a there. False with under 8 points (with 7, one degree of
+// freedom is left and the fit follows their noise) or ill-conditioned.
 bool quadric_round(const HeightMap& map, int r, int c, double u, double v, const cv::Mat& skip,
                    double& height) {
   using Vector6d = Eigen::Matrix<double, 6, 1>;
